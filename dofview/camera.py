@@ -1,0 +1,178 @@
+"""Pinhole cameras in the OpenCV convention (x right, y down, z forward), world → camera.
+
+Pixel coordinates are continuous with (0, 0) at the top-left corner of the image, so the centre
+of pixel (i, j) is (i + 0.5, j + 0.5) and a point projects to (fx·x/z + cx, fy·y/z + cy).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DofviewError
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera.
+
+    Attributes:
+        width, height: image size in pixels.
+        fx, fy: focal lengths in pixels.
+        cx, cy: principal point in pixels (continuous coordinates, see module docstring).
+        R: (3, 3) float64 world → camera rotation (rows are the camera axes in world space).
+        T: (3,) float64 world → camera translation, scene units: x_cam = R x_world + T.
+        name: an image name when the camera came from cameras.json.
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    R: np.ndarray
+    T: np.ndarray
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "R", np.asarray(self.R, dtype=np.float64).reshape(3, 3))
+        object.__setattr__(self, "T", np.asarray(self.T, dtype=np.float64).reshape(3))
+
+    @property
+    def centre(self) -> np.ndarray:
+        """(3,) float64: the camera centre in world space, scene units."""
+        return -self.R.T @ self.T
+
+    @property
+    def forward(self) -> np.ndarray:
+        """(3,) float64: the viewing direction (camera +z) in world space."""
+        return self.R[2].copy()
+
+    def view_key(self) -> bytes:
+        """Bytes that change exactly when the depth order of the scene can change."""
+        return np.concatenate([self.R.ravel(), self.T]).tobytes()
+
+    def world_to_camera(self, points: np.ndarray) -> np.ndarray:
+        """(N, 3) world points → (N, 3) float64 camera-space points, scene units."""
+        return np.asarray(points, dtype=np.float64) @ self.R.T + self.T
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(N, 3) world points → (N, 2) float64 pixel coordinates."""
+        t = self.world_to_camera(points)
+        return np.stack([self.fx * t[:, 0] / t[:, 2] + self.cx, self.fy * t[:, 1] / t[:, 2] + self.cy], axis=1)
+
+    def resized(self, width: int, height: int) -> "Camera":
+        """The same view at another image size: fx, cx scale with width and fy, cy with height."""
+        sx, sy = width / self.width, height / self.height
+        return replace(self, width=int(width), height=int(height), fx=self.fx * sx, fy=self.fy * sy,
+                       cx=self.cx * sx, cy=self.cy * sy)
+
+    def lens_shifted(self, u: float, v: float, focus: float) -> "Camera":
+        """The pinhole camera seen from lens point (u, v) (scene units, camera x/y) that keeps the
+        plane z = focus fixed: centre moved by (u, v), principal point by (fx·u/focus, fy·v/focus).
+        """
+        return replace(self, T=self.T - np.array([u, v, 0.0]), cx=self.cx + self.fx * u / focus,
+                       cy=self.cy + self.fy * v / focus)
+
+    def pixel_ray(self, px: float, py: float) -> np.ndarray:
+        """(3,) float64 world-space direction through pixel coordinates (px, py), with camera z = 1."""
+        d = np.array([(px - self.cx) / self.fx, (py - self.cy) / self.fy, 1.0])
+        return self.R.T @ d
+
+    @property
+    def fov_x_deg(self) -> float:
+        return math.degrees(2 * math.atan(self.width / (2 * self.fx)))
+
+
+def look_at(eye, target, width: int, height: int, fov_deg: float = 50.0, up=(0.0, -1.0, 0.0)) -> Camera:
+    """A camera at ``eye`` looking at ``target``; ``fov_deg`` is the horizontal field of view.
+
+    ``up`` is the world direction that appears up in the image. The default (0, −1, 0) matches
+    OpenCV/COLMAP scenes, where world y points down.
+    """
+    eye = np.asarray(eye, dtype=np.float64)
+    fwd = np.asarray(target, dtype=np.float64) - eye
+    if not np.all(np.isfinite(fwd)) or np.linalg.norm(fwd) == 0:
+        raise DofviewError("camera eye and target must be distinct finite points")
+    fwd /= np.linalg.norm(fwd)
+    up = np.asarray(up, dtype=np.float64)
+    right = np.cross(fwd, up)  # camera x = forward × up gives x right when up is image-up
+    if np.linalg.norm(right) < 1e-9:  # looking straight along up: pick any perpendicular
+        right = np.cross(fwd, np.array([1.0, 0, 0]) if abs(fwd[0]) < 0.9 else np.array([0, 0, 1.0]))
+    right /= np.linalg.norm(right)
+    down = np.cross(fwd, right)
+    R = np.stack([right, down, fwd])
+    if not 0.0 < fov_deg < 180.0:
+        raise DofviewError(f"field of view must be between 0 and 180 degrees, got {fov_deg}")
+    fx = width / (2 * math.tan(math.radians(fov_deg) / 2))
+    return Camera(width, height, fx, fx, width / 2, height / 2, R, -R @ eye)
+
+
+def framing_camera(scene, width: int, height: int, fov_deg: float = 50.0) -> Camera:
+    """A camera that frames the scene's robust bounds, looking along +z of the world."""
+    lo, hi = scene.robust_bounds()
+    centre = (lo + hi) / 2
+    radius = max(float(np.linalg.norm(hi - lo)) / 2, 1e-6)
+    half = math.radians(fov_deg) / 2 * min(1.0, height / width)
+    dist = radius / math.sin(half) if half > 0 else 2 * radius
+    eye = centre - np.array([0.0, 0.0, dist])
+    return look_at(eye, centre, width, height, fov_deg)
+
+
+def load_cameras_json(path: str | Path) -> list[Camera]:
+    """Read an Inria ``cameras.json``: a list of {id, img_name, width, height, position (camera
+    centre, world), rotation (3×3 camera → world), fx, fy}."""
+    path = Path(path)
+    try:
+        entries = json.loads(path.read_text())
+    except OSError as e:
+        raise DofviewError(f"{path}: cannot read cameras file ({e.strerror or e})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DofviewError(f"{path}: not a valid JSON cameras file ({e})") from None
+    if not isinstance(entries, list) or not entries:
+        raise DofviewError(f"{path}: expected a non-empty JSON list of cameras")
+    cams = []
+    for i, e in enumerate(entries):
+        try:
+            c2w = np.asarray(e["rotation"], dtype=np.float64).reshape(3, 3)
+            pos = np.asarray(e["position"], dtype=np.float64).reshape(3)
+            w, h = int(e["width"]), int(e["height"])
+            fx, fy = float(e["fx"]), float(e["fy"])
+        except (KeyError, TypeError, ValueError) as err:
+            raise DofviewError(f"{path}: camera {i} is malformed ({err!r})") from None
+        if not (np.all(np.isfinite(c2w)) and np.all(np.isfinite(pos)) and w > 0 and h > 0 and fx > 0 and fy > 0):
+            raise DofviewError(f"{path}: camera {i} has non-finite or non-positive values")
+        R = c2w.T
+        cams.append(Camera(w, h, fx, fy, w / 2, h / 2, R, -R @ pos, name=str(e.get("img_name", i))))
+    return cams
+
+
+def save_cameras_json(cameras: list[Camera], path: str | Path) -> None:
+    """Write cameras in the Inria ``cameras.json`` format (principal point assumed centred)."""
+    out = []
+    for i, c in enumerate(cameras):
+        out.append({
+            "id": i, "img_name": c.name or f"view_{i:03d}", "width": c.width, "height": c.height,
+            "position": c.centre.tolist(), "rotation": c.R.T.tolist(), "fx": c.fx, "fy": c.fy,
+        })
+    Path(path).write_text(json.dumps(out, indent=1))
+
+
+def select_camera(cameras: list[Camera], view: str, source: str = "cameras.json") -> Camera:
+    """Pick a camera by index (``"3"``) or image name (``"DSC_0042"``)."""
+    names = [c.name for c in cameras]
+    if view in names:
+        return cameras[names.index(view)]
+    try:
+        idx = int(view)
+    except ValueError:
+        shown = ", ".join(names[:5]) + (", …" if len(names) > 5 else "")
+        raise DofviewError(f"{source}: no camera named {view!r} (names: {shown})") from None
+    if not 0 <= idx < len(cameras):
+        raise DofviewError(f"{source}: view index {idx} out of range (0…{len(cameras) - 1})")
+    return cameras[idx]

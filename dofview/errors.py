@@ -1,0 +1,9 @@
+"""dofview's own error type: a user mistake (bad file, bad argument), never a bug.
+
+The CLI prints a ``DofviewError`` as one line and exits 2; anything else is a bug and keeps its
+traceback.
+"""
+
+
+class DofviewError(Exception):
+    """A problem the user can fix: the message names the file or argument and what is wrong."""

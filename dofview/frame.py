@@ -1,0 +1,75 @@
+"""What a render produces: linear RGBA and depth, plus the settings every renderer shares."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DofviewError
+from .tonemap import Tonemap, display, to_uint8
+
+OPACITY_NORMS: tuple[str, ...] = ("none", "energy", "optical-depth")
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Splatting settings shared by the GL renderer and the CPU reference.
+
+    Attributes:
+        tau: minimum per-pixel alpha τ in [0, 1); contributions below it are dropped. With τ = 0
+            a Gaussian's support is its 3σ ellipse.
+        k: aperture covariance scale: Σ₂′ = Σ₂ + k·R²·I (R the CoC radius, pixels).
+        opacity_norm: "energy" (o′ = o·β, β = sqrt(det Σ₂ / det Σ₂′), Eq. 5), "optical-depth"
+            (−ln(1−o′) = β·(−ln(1−o))) or "none".
+        blend_linear: decode each splat's colour to linear light before blending (only changes
+            display-encoded scenes).
+        near: near plane, camera z in scene units; Gaussians with z ≤ near are not drawn.
+    """
+
+    tau: float = 2.0 / 255.0
+    k: float = 0.25
+    opacity_norm: str = "energy"
+    blend_linear: bool = False
+    near: float = 0.01
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.tau < 1.0):
+            raise DofviewError(f"tau (minimum alpha) must be in [0, 1), got {self.tau}")
+        if not (math.isfinite(self.k) and self.k >= 0):
+            raise DofviewError(f"k (aperture covariance scale) must be finite and ≥ 0, got {self.k}")
+        if self.opacity_norm not in OPACITY_NORMS:
+            raise DofviewError(f"opacity normalisation must be one of {', '.join(OPACITY_NORMS)}")
+        if not (math.isfinite(self.near) and self.near > 0):
+            raise DofviewError(f"near plane must be finite and > 0, got {self.near}")
+
+
+@dataclass
+class Frame:
+    """A rendered image.
+
+    Attributes:
+        rgba: (H, W, 4) float32 linear RGB premultiplied by alpha (over black), alpha = coverage.
+        depth: (H, W) float32 α-weighted mean camera z of the splats, scene units; 0 where α = 0.
+        encoded: True when the scene blends display-encoded colours (standard sRGB 3DGS).
+    """
+
+    rgba: np.ndarray
+    depth: np.ndarray
+    encoded: bool
+
+    @property
+    def alpha(self) -> np.ndarray:
+        return self.rgba[..., 3]
+
+    def display(self, tm: Tonemap | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 display image."""
+        return to_uint8(display(self.rgba, self.encoded, tm or Tonemap()))
+
+
+def depth_from_weighted(weighted: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Σ α_i T_i z_i and coverage → (H, W) float32 mean depth; 0 where nothing was drawn."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(alpha > 1e-6, weighted / np.maximum(alpha, 1e-6), 0.0)
+    return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)

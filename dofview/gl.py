@@ -1,0 +1,64 @@
+"""OpenGL context and shader files.
+
+Shaders live in the top-level ``shaders/`` folder of a source checkout and in ``dofview/shaders``
+inside the wheel; both are found at run time. ``#include "file"`` lines are expanded and
+``#define``s inserted after ``#version``.
+"""
+
+from __future__ import annotations
+
+import re
+from functools import lru_cache
+from pathlib import Path
+
+import moderngl
+
+from .errors import DofviewError
+
+_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
+GL_REQUIRED = 430  # SSBOs and atomics in the vertex stage
+
+
+def shader_dir() -> Path:
+    here = Path(__file__).resolve().parent
+    for cand in (here / "shaders", here.parent / "shaders"):
+        if (cand / "splat.vert").is_file():
+            return cand
+    raise DofviewError(f"dofview's shader files are missing (looked in {here / 'shaders'}); reinstall dofview")
+
+
+def load_shader(name: str, defines: dict[str, object] | None = None) -> str:
+    """The text of ``shaders/name`` with includes expanded and ``defines`` set."""
+    base = shader_dir()
+    src = (base / name).read_text()
+    src = _INCLUDE.sub(lambda m: (base / m.group(1)).read_text(), src)
+    if defines:
+        head, _, rest = src.partition("\n")
+        src = head + "\n" + "".join(f"#define {k} {v}\n" for k, v in defines.items()) + rest
+    return src
+
+
+_MISSING_GL = (
+    "cannot create a headless OpenGL {need} context through EGL ({err}). Install Mesa's EGL and "
+    "software rasteriser (Debian/Ubuntu: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1) "
+    "or run scripts/setup.sh"
+)
+
+
+@lru_cache(maxsize=1)
+def headless_context() -> moderngl.Context:
+    """The process's shared headless GL context (EGL: Mesa llvmpipe without a GPU, or NVIDIA)."""
+    try:
+        ctx = moderngl.create_standalone_context(backend="egl", require=GL_REQUIRED)
+    except Exception as e:  # moderngl/glcontext raise plain Exceptions with library messages
+        raise DofviewError(_MISSING_GL.format(need=f"{GL_REQUIRED // 100}.{GL_REQUIRED % 100 // 10}", err=str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)) from None
+    return ctx
+
+
+def check_size(ctx: moderngl.Context, width: int, height: int) -> None:
+    """Refuse image sizes the GL implementation cannot hold, with a clear message."""
+    limit = min(ctx.info["GL_MAX_TEXTURE_SIZE"], *ctx.info["GL_MAX_VIEWPORT_DIMS"])
+    if width < 1 or height < 1:
+        raise DofviewError(f"image size must be at least 1×1, got {width}×{height}")
+    if width > limit or height > limit:
+        raise DofviewError(f"image size {width}×{height} exceeds this OpenGL's limit of {limit} pixels per side")

@@ -1,0 +1,105 @@
+"""Thin lens and exposure: circle of confusion, aperture strength, physical lens (Eq. 3), t/N².
+
+The circle of confusion of a point at camera depth z is R(z) = ½·A·|1/z − 1/d_f| pixels, where
+A is the aperture strength in px·(scene unit) (the poster's form). A physical thin lens with
+focal length f, f-number N and focus d_f gives the same curve with A = f_x·(f/N)·d_f/(d_f − f)
+(Cinematic Gaussians Eq. 3), f_x in pixels and all lengths in scene units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DofviewError
+
+
+@dataclass(frozen=True)
+class Lens:
+    """A thin lens at render time.
+
+    Attributes:
+        focus: focus distance d_f, camera z-depth in scene units (> 0, may be inf).
+        aperture: strength A in px·(scene unit), ≥ 0; 0 is a pinhole.
+    """
+
+    focus: float = 1.0
+    aperture: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (self.focus > 0) or math.isnan(self.focus):
+            raise DofviewError(f"focus distance must be > 0, got {self.focus}")
+        if not (self.aperture >= 0) or not math.isfinite(self.aperture):
+            raise DofviewError(f"aperture must be a finite value ≥ 0, got {self.aperture}")
+
+    @property
+    def inv_focus(self) -> float:
+        return 0.0 if math.isinf(self.focus) else 1.0 / self.focus
+
+    def coc_radius(self, z) -> np.ndarray:
+        """CoC radius in pixels for camera depth ``z`` (scene units, any shape)."""
+        z = np.asarray(z, dtype=np.float64)
+        return 0.5 * self.aperture * np.abs(1.0 / z - self.inv_focus)
+
+    def diameter(self, fx: float) -> float:
+        """Aperture diameter D in scene units for a camera with ``fx`` pixels (A = f_x·D)."""
+        return self.aperture / fx
+
+
+@dataclass(frozen=True)
+class PhysicalLens:
+    """A physical thin lens: focal length and sensor in mm, scene scale in units per metre."""
+
+    focal_mm: float
+    fnumber: float
+    sensor_mm: float = 36.0
+    units_per_metre: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("focal_mm", "fnumber", "sensor_mm", "units_per_metre"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise DofviewError(f"{name.replace('_', '-')} must be a finite value > 0, got {v}")
+
+    @property
+    def focal_units(self) -> float:
+        """Focal length in scene units."""
+        return self.focal_mm * 1e-3 * self.units_per_metre
+
+    def fx_pixels(self, width: int) -> float:
+        """The horizontal focal length in pixels this lens gives on an image ``width`` wide."""
+        return self.focal_mm / self.sensor_mm * width
+
+    def strength(self, fx: float, focus: float) -> float:
+        """Aperture strength A (px·scene unit) for focus distance ``focus`` (scene units).
+
+        Eq. 3 of Cinematic Gaussians: R = ½·f_x·(f/N)·d_f/(d_f − f)·|1/z − 1/d_f|. Focusing at or
+        inside the focal length has no real image: that is refused, not divided by zero.
+        """
+        f = self.focal_units
+        if math.isinf(focus):
+            return fx * f / self.fnumber
+        if not focus > f:
+            raise DofviewError(
+                f"focus distance {focus:g} must be beyond the focal length ({f:g} scene units "
+                f"= {self.focal_mm:g} mm at {self.units_per_metre:g} units per metre)")
+        return fx * (f / self.fnumber) * focus / (focus - f)
+
+    def lens(self, fx: float, focus: float) -> Lens:
+        return Lens(focus=focus, aperture=self.strength(fx, focus))
+
+
+def exposure_from_ev(ev: float) -> float:
+    """Linear exposure multiplier 2^EV."""
+    if not math.isfinite(ev):
+        raise DofviewError(f"exposure must be a finite number of stops, got {ev}")
+    return float(2.0 ** ev)
+
+
+def exposure_from_shutter(t: float, fnumber: float) -> float:
+    """Linear exposure t/N² (Eq. 7), for exposure time ``t`` seconds and f-number ``fnumber``."""
+    if not (t > 0 and math.isfinite(t) and fnumber > 0 and math.isfinite(fnumber)):
+        raise DofviewError(f"exposure time and f-number must be > 0, got t={t}, N={fnumber}")
+    return float(t / fnumber ** 2)

@@ -1,0 +1,146 @@
+"""CPU reference renderer: plain numpy, float64, exact per-pixel front-to-back compositing.
+
+The one deliberate twin of the GL renderer, kept plain and slow, for small images in tests.
+No quads and no key quantisation: every pixel centre is tested against every Gaussian whose
+support can reach its tile (the support's axis-aligned box is exact, so no contribution is lost),
+and the depth order is an exact float64 stable sort of the means' camera depths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .camera import Camera
+from .frame import Frame, RenderSettings, depth_from_weighted
+from .lens import Lens
+from .scene import SH_C0, GaussianScene
+from .tonemap import decode
+
+LOW_PASS = 0.3
+ALPHA_MAX = 0.99
+
+_C1 = 0.4886025119029199
+_C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
+_C3 = (-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154,
+       -0.4570457994644658, 1.445305721320277, -0.5900435899266435)
+
+
+def sh_colour(scene: GaussianScene, eye: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(M, 3) float64 colour max(SH(view dir) + 0.5, 0) of the Gaussians ``idx`` seen from ``eye``."""
+    c = SH_C0 * scene.sh_dc[idx].astype(np.float64) + 0.5
+    deg = scene.sh_degree
+    if deg > 0:
+        sh = scene.sh_rest[idx].astype(np.float64)
+        d = scene.means[idx].astype(np.float64) - eye
+        d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+        x, y, z = (d[:, i:i + 1] for i in range(3))
+        c = c + _C1 * (-y * sh[:, 0] + z * sh[:, 1] - x * sh[:, 2])
+        if deg > 1:
+            xx, yy, zz = x * x, y * y, z * z
+            c = c + (_C2[0] * x * y * sh[:, 3] + _C2[1] * y * z * sh[:, 4]
+                     + _C2[2] * (2 * zz - xx - yy) * sh[:, 5] + _C2[3] * x * z * sh[:, 6]
+                     + _C2[4] * (xx - yy) * sh[:, 7])
+        if deg > 2:
+            c = c + (_C3[0] * y * (3 * xx - yy) * sh[:, 8] + _C3[1] * x * y * z * sh[:, 9]
+                     + _C3[2] * y * (4 * zz - xx - yy) * sh[:, 10]
+                     + _C3[3] * z * (2 * zz - 3 * xx - 3 * yy) * sh[:, 11]
+                     + _C3[4] * x * (4 * zz - xx - yy) * sh[:, 12] + _C3[5] * z * (xx - yy) * sh[:, 13]
+                     + _C3[6] * x * (xx - 3 * yy) * sh[:, 14])
+    return np.maximum(c, 0.0)
+
+
+def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSettings) -> dict[str, np.ndarray]:
+    """Per-Gaussian screen-space quantities, float64, for the Gaussians in front of the near plane.
+
+    Returns a dict of arrays over the M kept Gaussians (front to back): ``idx`` (M,), ``mean2d``
+    (M, 2) pixels, ``cov`` (M, 3) the blurred 2D covariance (xx, xy, yy) px², ``opacity`` (M,) o′,
+    ``depth`` (M,) camera z, ``r2`` (M,) the support bound on dᵀΣ⁻¹d.
+    """
+    cov3 = scene.covariances()
+    t = camera.world_to_camera(scene.means)
+    keep = t[:, 2] > settings.near
+    idx = np.nonzero(keep)[0]
+    idx = idx[np.argsort(t[idx, 2], kind="stable")]
+    t, cov3 = t[idx], cov3[idx]
+    fx, fy, cx, cy, w, h = camera.fx, camera.fy, camera.cx, camera.cy, camera.width, camera.height
+    iz = 1.0 / t[:, 2]
+    tx = np.clip(t[:, 0] * iz, (-cx - 0.15 * w) / fx, (w - cx + 0.15 * w) / fx)
+    ty = np.clip(t[:, 1] * iz, (-cy - 0.15 * h) / fy, (h - cy + 0.15 * h) / fy)
+    R = camera.R
+    a = (fx * iz)[:, None] * (R[0][None] - tx[:, None] * R[2][None])
+    c = (fy * iz)[:, None] * (R[1][None] - ty[:, None] * R[2][None])
+    S = np.empty((len(idx), 3, 3))
+    S[:, 0, 0], S[:, 0, 1], S[:, 0, 2] = cov3[:, 0], cov3[:, 1], cov3[:, 2]
+    S[:, 1, 0], S[:, 1, 1], S[:, 1, 2] = cov3[:, 1], cov3[:, 3], cov3[:, 4]
+    S[:, 2, 0], S[:, 2, 1], S[:, 2, 2] = cov3[:, 2], cov3[:, 4], cov3[:, 5]
+    Sa = np.einsum("nij,nj->ni", S, a)
+    Sc = np.einsum("nij,nj->ni", S, c)
+    sxx = np.einsum("ni,ni->n", a, Sa) + LOW_PASS
+    sxy = np.einsum("ni,ni->n", a, Sc)
+    syy = np.einsum("ni,ni->n", c, Sc) + LOW_PASS
+    det0 = sxx * syy - sxy * sxy
+    coc = lens.coc_radius(t[:, 2])
+    add = settings.k * coc * coc
+    sxx, syy = sxx + add, syy + add
+    det = sxx * syy - sxy * sxy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        beta = np.sqrt(det0 / det)
+    o = scene.opacities[idx].astype(np.float64)
+    if settings.opacity_norm == "energy":
+        o = o * beta
+    elif settings.opacity_norm == "optical-depth":
+        o = 1.0 - np.exp(beta * np.log(1.0 - np.minimum(o, ALPHA_MAX)))
+    tau = settings.tau
+    ok = (det0 > 0) & np.isfinite(det) & (det > 0) & (o > 0) & (np.minimum(o, ALPHA_MAX) >= tau)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r2 = 2.0 * np.log(o / tau) if tau > 0 else np.full_like(o, 9.0)
+    mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)
+    sel = np.nonzero(ok)[0]
+    return {
+        "idx": idx[sel], "mean2d": mean2d[sel], "cov": np.stack([sxx, sxy, syy], 1)[sel],
+        "opacity": o[sel], "depth": t[sel, 2], "r2": r2[sel],
+    }
+
+
+def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
+                     settings: RenderSettings = RenderSettings(), tile: int = 16) -> Frame:
+    """Render ``scene`` on the CPU. Cost ~ pixels × Gaussians per tile: keep images small."""
+    w, h = camera.width, camera.height
+    pr = project(scene, camera, lens, settings)
+    encoded = scene.colour_space == "srgb" and not settings.blend_linear
+    colour = sh_colour(scene, camera.centre, pr["idx"])
+    if settings.blend_linear:
+        colour = decode(colour)
+    sxx, sxy, syy = pr["cov"].T
+    det = sxx * syy - sxy * sxy
+    conic = np.stack([syy / det, -sxy / det, sxx / det], 1)
+    ext = np.sqrt(pr["r2"][:, None] * np.stack([sxx, syy], 1))
+    lo, hi = pr["mean2d"] - ext, pr["mean2d"] + ext
+    out = np.zeros((h, w, 4))
+    zacc = np.zeros((h, w))
+    tau = settings.tau
+    for y0 in range(0, h, tile):
+        for x0 in range(0, w, tile):
+            x1, y1 = min(x0 + tile, w), min(y0 + tile, h)
+            hit = np.nonzero((hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1))[0]
+            if hit.size == 0:
+                continue
+            px, py = np.meshgrid(np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5)
+            dx = px.reshape(-1, 1) - pr["mean2d"][hit, 0][None]
+            dy = py.reshape(-1, 1) - pr["mean2d"][hit, 1][None]
+            cn = conic[hit]
+            q = cn[:, 0] * dx * dx + 2 * cn[:, 1] * dx * dy + cn[:, 2] * dy * dy
+            alpha = np.minimum(ALPHA_MAX, pr["opacity"][hit][None] * np.exp(-0.5 * q))
+            alpha = np.where((alpha >= tau) & ((tau > 0) | (q <= 9.0)), alpha, 0.0)
+            trans = np.cumprod(1.0 - alpha, axis=1)
+            weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
+            rgb = weight @ colour[hit]
+            a = 1.0 - trans[:, -1]
+            z = weight @ pr["depth"][hit]
+            out[y0:y1, x0:x1, :3] = rgb.reshape(y1 - y0, x1 - x0, 3)
+            out[y0:y1, x0:x1, 3] = a.reshape(y1 - y0, x1 - x0)
+            zacc[y0:y1, x0:x1] = z.reshape(y1 - y0, x1 - x0)
+    rgba = out.astype(np.float32)
+    if encoded:
+        rgba[..., :3] = decode(out[..., :3]).astype(np.float32)
+    return Frame(rgba=rgba, depth=depth_from_weighted(zacc, out[..., 3]), encoded=encoded)

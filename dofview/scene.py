@@ -1,0 +1,128 @@
+"""The Gaussian scene: activated parameters of a trained 3DGS model, in scene units.
+
+Data flows file → scene → camera + lens → renderer → image. A scene holds only what its file
+had: a degree-0 scene has ``sh_rest is None`` and no SH-rest storage anywhere downstream.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+SH_C0 = 0.28209479177387814
+ColourSpace = Literal["srgb", "linear"]
+COLOUR_SPACES: tuple[str, ...] = ("srgb", "linear")
+
+
+def sh_coeff_count(degree: int) -> int:
+    """Coefficients per colour channel for SH degree ``degree`` (1, 4, 9, 16)."""
+    return (degree + 1) ** 2
+
+
+@dataclass
+class GaussianScene:
+    """A set of 3D Gaussians with activated parameters.
+
+    Attributes:
+        means: (N, 3) float32, scene units, world space.
+        quats: (N, 4) float32, unit quaternions (w, x, y, z), world-from-local rotation.
+        scales: (N, 3) float32, scene units, standard deviations along the local axes (> 0).
+        opacities: (N,) float32 in [0, 1] (sigmoid of the stored logit).
+        sh_dc: (N, 3) float32, the degree-0 SH coefficient per channel (colour = SH_C0·dc + 0.5).
+        sh_rest: (N, K-1, 3) float32 with K = (degree+1)², or None for degree 0.
+        colour_space: "srgb" when the blended values are display-encoded (standard 3DGS fit to
+            sRGB photos), "linear" when they are linear radiance (HDR training).
+    """
+
+    means: np.ndarray
+    quats: np.ndarray
+    scales: np.ndarray
+    opacities: np.ndarray
+    sh_dc: np.ndarray
+    sh_rest: np.ndarray | None = None
+    colour_space: ColourSpace = "srgb"
+    name: str = field(default="scene")
+
+    def __post_init__(self) -> None:
+        self.means = np.ascontiguousarray(self.means, dtype=np.float32).reshape(-1, 3)
+        n = self.means.shape[0]
+        self.quats = np.ascontiguousarray(self.quats, dtype=np.float32).reshape(n, 4)
+        self.scales = np.ascontiguousarray(self.scales, dtype=np.float32).reshape(n, 3)
+        self.opacities = np.ascontiguousarray(self.opacities, dtype=np.float32).reshape(n)
+        self.sh_dc = np.ascontiguousarray(self.sh_dc, dtype=np.float32).reshape(n, 3)
+        if self.sh_rest is not None:
+            rest = np.ascontiguousarray(self.sh_rest, dtype=np.float32)
+            if rest.ndim != 3 or rest.shape[0] != n or rest.shape[2] != 3:
+                raise ValueError(f"sh_rest must be (N, K-1, 3), got {rest.shape}")
+            if rest.shape[1] == 0:
+                rest = None
+            elif rest.shape[1] + 1 not in (4, 9, 16):
+                raise ValueError(f"sh_rest has {rest.shape[1]} coefficients: not an SH degree")
+            self.sh_rest = rest
+        if self.colour_space not in COLOUR_SPACES:
+            raise ValueError(f"colour_space must be one of {COLOUR_SPACES}")
+
+    @property
+    def count(self) -> int:
+        return int(self.means.shape[0])
+
+    def __len__(self) -> int:
+        return self.count
+
+    @property
+    def sh_degree(self) -> int:
+        if self.sh_rest is None:
+            return 0
+        return {4: 1, 9: 2, 16: 3}[self.sh_rest.shape[1] + 1]
+
+    def base_colour(self) -> np.ndarray:
+        """(N, 3) float32: the view-independent colour max(SH_C0·dc + 0.5, 0)."""
+        return np.maximum(SH_C0 * self.sh_dc + 0.5, 0.0).astype(np.float32)
+
+    def robust_bounds(self, lo_pct: float = 2.0, hi_pct: float = 98.0) -> tuple[np.ndarray, np.ndarray]:
+        """(3,), (3,) float64: per-axis percentile box of the means (outliers do not widen it)."""
+        if self.count == 0:
+            return np.full(3, -1.0), np.full(3, 1.0)
+        lo = np.percentile(self.means, lo_pct, axis=0).astype(np.float64)
+        hi = np.percentile(self.means, hi_pct, axis=0).astype(np.float64)
+        return lo, hi
+
+    def subset(self, keep: np.ndarray) -> "GaussianScene":
+        """A new scene with only the Gaussians selected by ``keep`` (bool mask or indices)."""
+        return GaussianScene(
+            means=self.means[keep],
+            quats=self.quats[keep],
+            scales=self.scales[keep],
+            opacities=self.opacities[keep],
+            sh_dc=self.sh_dc[keep],
+            sh_rest=None if self.sh_rest is None else self.sh_rest[keep],
+            colour_space=self.colour_space,
+            name=self.name,
+        )
+
+    def covariances(self) -> np.ndarray:
+        """(N, 6) float64: upper triangle (xx, xy, xz, yy, yz, zz) of Σ = R S Sᵀ Rᵀ, scene units².
+
+        Computed in float64 on the host so that extreme scales (1e-8…1e4) and needle-like
+        Gaussians keep a positive semi-definite covariance before it is rounded to float32.
+        """
+        q = self.quats.astype(np.float64)
+        norm = np.linalg.norm(q, axis=1, keepdims=True)
+        # A zero (or denormal) quaternion has no rotation to offer: treat it as identity.
+        q = np.where(norm > 1e-30, q / np.maximum(norm, 1e-300), np.array([1.0, 0, 0, 0]))
+        w, x, y, z = q.T
+        rot = np.stack(
+            [
+                1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+            ],
+            axis=1,
+        ).reshape(-1, 3, 3)
+        m = rot * self.scales.astype(np.float64)[:, None, :]
+        cov = m @ m.transpose(0, 2, 1)
+        return np.stack(
+            [cov[:, 0, 0], cov[:, 0, 1], cov[:, 0, 2], cov[:, 1, 1], cov[:, 1, 2], cov[:, 2, 2]], axis=1
+        )

@@ -1,0 +1,30 @@
+"""Depth order of Gaussians: front to back by camera-space depth of the means.
+
+Keys are the IEEE bits of float32 depth mapped to monotone uint32, so the order is exact for any
+finite depth range (1e-3…1e5 units and beyond) and ties keep their index order (stable), which
+keeps equal-depth Gaussians from flickering between frames.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .camera import Camera
+
+
+def camera_depths(means: np.ndarray, camera: Camera) -> np.ndarray:
+    """(N, 3) float32 world means → (N,) float32 camera z, scene units."""
+    r = camera.R[2].astype(np.float32)
+    return means @ r + np.float32(camera.T[2])
+
+
+def depth_keys(z: np.ndarray) -> np.ndarray:
+    """(N,) float32 depths → (N,) uint32 keys in the same order."""
+    bits = np.ascontiguousarray(z, dtype=np.float32).view(np.uint32)
+    neg = (bits >> 31).astype(bool)
+    return np.where(neg, ~bits, bits | np.uint32(0x80000000)).astype(np.uint32)
+
+
+def front_to_back(means: np.ndarray, camera: Camera) -> np.ndarray:
+    """(N,) uint32 indices of the Gaussians ordered nearest first (stable for ties)."""
+    return np.argsort(depth_keys(camera_depths(means, camera)), kind="stable").astype(np.uint32)
