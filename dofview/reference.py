@@ -103,8 +103,14 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
 
 
 def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
-                     settings: RenderSettings = RenderSettings(), tile: int = 16) -> Frame:
-    """Render ``scene`` on the CPU. Cost ~ pixels × Gaussians per tile: keep images small."""
+                     settings: RenderSettings = RenderSettings(), tile: int = 16,
+                     margins: bool = False) -> Frame | tuple[Frame, np.ndarray]:
+    """Render ``scene`` on the CPU. Cost ~ pixels × Gaussians per tile: keep images small.
+
+    With ``margins=True`` also returns an (H, W) bool mask of the pixels where some Gaussian sits
+    within 1e-5 (relative) of a cut (α = τ, or dᵀΣ⁻¹d = 9 when τ = 0): there a float32 renderer
+    may legitimately decide the other way, so comparisons can leave those pixels out.
+    """
     w, h = camera.width, camera.height
     pr = project(scene, camera, lens, settings)
     encoded = scene.colour_space == "srgb" and not settings.blend_linear
@@ -118,6 +124,7 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
     lo, hi = pr["mean2d"] - ext, pr["mean2d"] + ext
     out = np.zeros((h, w, 4))
     zacc = np.zeros((h, w))
+    near_cut = np.zeros((h, w), bool)
     tau = settings.tau
     for y0 in range(0, h, tile):
         for x0 in range(0, w, tile):
@@ -131,6 +138,9 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
             cn = conic[hit]
             q = cn[:, 0] * dx * dx + 2 * cn[:, 1] * dx * dy + cn[:, 2] * dy * dy
             alpha = np.minimum(ALPHA_MAX, pr["opacity"][hit][None] * np.exp(-0.5 * q))
+            if margins:
+                edge = np.abs(alpha - tau) <= 1e-5 * tau if tau > 0 else np.abs(q - 9.0) <= 9e-5
+                near_cut[y0:y1, x0:x1] = edge.any(axis=1).reshape(y1 - y0, x1 - x0)
             alpha = np.where((alpha >= tau) & ((tau > 0) | (q <= 9.0)), alpha, 0.0)
             trans = np.cumprod(1.0 - alpha, axis=1)
             weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
@@ -143,4 +153,5 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
     rgba = out.astype(np.float32)
     if encoded:
         rgba[..., :3] = decode(out[..., :3]).astype(np.float32)
-    return Frame(rgba=rgba, depth=depth_from_weighted(zacc, out[..., 3]), encoded=encoded)
+    frame = Frame(rgba=rgba, depth=depth_from_weighted(zacc, out[..., 3]), encoded=encoded)
+    return (frame, near_cut) if margins else frame

@@ -45,11 +45,12 @@ class Renderer:
         self.encoded_scene = scene.colour_space == "srgb"
         self.stats = DrawStats(total=scene.count)
         n = max(scene.count, 1)  # GL refuses zero-sized buffers; an empty scene draws 0 instances
-        geom = np.zeros((n, 10), np.float32)
+        geom = np.zeros((n, 12), np.float32)
         if scene.count:
             geom[:, :3] = scene.means
             geom[:, 3] = scene.opacities
-            geom[:, 4:] = scene.covariances()
+            geom[:, 4:8] = scene.unit_quats()
+            geom[:, 8:11] = scene.scales
         base = np.zeros((n, 3), np.float32)
         if scene.count:
             base[:] = 0.28209479177387814 * scene.sh_dc + 0.5

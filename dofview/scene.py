@@ -102,17 +102,19 @@ class GaussianScene:
             name=self.name,
         )
 
+    def unit_quats(self) -> np.ndarray:
+        """(N, 4) float64 unit quaternions (w, x, y, z); a zero or denormal one becomes identity."""
+        q = self.quats.astype(np.float64)
+        norm = np.linalg.norm(q, axis=1, keepdims=True)
+        return np.where(norm > 1e-30, q / np.maximum(norm, 1e-300), np.array([1.0, 0, 0, 0]))
+
     def covariances(self) -> np.ndarray:
         """(N, 6) float64: upper triangle (xx, xy, xz, yy, yz, zz) of Σ = R S Sᵀ Rᵀ, scene units².
 
         Computed in float64 on the host so that extreme scales (1e-8…1e4) and needle-like
         Gaussians keep a positive semi-definite covariance before it is rounded to float32.
         """
-        q = self.quats.astype(np.float64)
-        norm = np.linalg.norm(q, axis=1, keepdims=True)
-        # A zero (or denormal) quaternion has no rotation to offer: treat it as identity.
-        q = np.where(norm > 1e-30, q / np.maximum(norm, 1e-300), np.array([1.0, 0, 0, 0]))
-        w, x, y, z = q.T
+        w, x, y, z = self.unit_quats().T
         rot = np.stack(
             [
                 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),

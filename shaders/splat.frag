@@ -2,8 +2,9 @@
 // Per-pixel Gaussian alpha with the minimum-alpha cut tau, premultiplied for back-to-front
 // blending (ONE, ONE_MINUS_SRC_ALPHA); the second target accumulates alpha-weighted depth.
 
-in vec2 v_offset;
-flat in vec3 v_conic;
+flat in vec2 v_centre;
+flat in vec2 v_axis1;
+flat in vec2 v_axis2;
 flat in float v_opacity;
 flat in vec3 v_colour;
 flat in float v_depth;
@@ -14,8 +15,9 @@ layout(location = 0) out vec4 out_colour;
 layout(location = 1) out vec4 out_depth;
 
 void main() {
-    vec2 d = v_offset;
-    float q = v_conic.x * d.x * d.x + 2.0 * v_conic.y * d.x * d.y + v_conic.z * d.y * d.y;
+    vec2 d = gl_FragCoord.xy - v_centre;
+    vec2 u = vec2(dot(d, v_axis1), dot(d, v_axis2));  // offset in std-devs along the axes
+    float q = dot(u, u);  // d^T Sigma^-1 d
     if (u_tau == 0.0 && q > 9.0) discard;
     float alpha = min(0.99, v_opacity * exp(-0.5 * q));
     if (alpha < u_tau || !(alpha > 0.0)) discard;

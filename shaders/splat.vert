@@ -4,7 +4,7 @@
 // exactly the ellipse where its alpha reaches tau. Culled Gaussians become a degenerate quad.
 // SH_DEGREE and SH_REST (coefficients beyond degree 0, per channel) are #defined by the loader.
 
-layout(std430, binding = 0) readonly buffer Geometry { float geom[]; };   // mean.xyz, opacity, cov xx xy xz yy yz zz
+layout(std430, binding = 0) readonly buffer Geometry { float geom[]; };   // mean.xyz, opacity, quat.wxyz, scale.xyz, pad
 layout(std430, binding = 1) readonly buffer BaseColour { float base[]; }; // SH_C0*dc + 0.5, per channel
 layout(std430, binding = 3) readonly buffer Order { uint order[]; };      // back-to-front indices
 layout(std430, binding = 4) buffer Counter { uint drawn; };
@@ -31,8 +31,11 @@ uniform int u_opacity_norm; // 0 none, 1 energy (beta), 2 optical depth
 uniform bool u_blend_linear;
 uniform bool u_count;
 
-out vec2 v_offset;          // pixel offset from the projected mean
-flat out vec3 v_conic;      // inverse 2D covariance (xx, xy, yy)
+// The fragment measures its offset from gl_FragCoord (exact pixel centres) rather than from an
+// interpolated varying, which would inherit the rasteriser's snapping of quad corners.
+flat out vec2 v_centre;     // projected mean in window coordinates (y up)
+flat out vec2 v_axis1;      // e1 / sqrt(l1), window coordinates: dot(d, v_axis1) is in std-devs
+flat out vec2 v_axis2;
 flat out float v_opacity;
 flat out vec3 v_colour;
 flat out float v_depth;
@@ -41,46 +44,61 @@ const float LOW_PASS = 0.3;
 
 void cull() {
     gl_Position = vec4(0.0, 0.0, 2.0, 1.0);  // outside the clip volume: nothing rasterised
-    v_offset = vec2(0.0);
-    v_conic = vec3(0.0);
+    v_centre = vec2(0.0);
+    v_axis1 = vec2(0.0);
+    v_axis2 = vec2(0.0);
     v_opacity = 0.0;
     v_colour = vec3(0.0);
     v_depth = 0.0;
 }
 
+mat3 rotation(vec4 q) {  // unit quaternion (w, x, y, z) -> rotation matrix (columns)
+    float w = q.x, x = q.y, y = q.z, z = q.w;
+    return mat3(1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y),
+                2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x),
+                2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y));
+}
+
 void main() {
     uint g = order[gl_InstanceID];
-    uint b = g * 10u;
+    uint b = g * 12u;
     vec3 mean = vec3(geom[b], geom[b + 1u], geom[b + 2u]);
     float opacity = geom[b + 3u];
+    vec4 quat = vec4(geom[b + 4u], geom[b + 5u], geom[b + 6u], geom[b + 7u]);
+    vec3 scale = vec3(geom[b + 8u], geom[b + 9u], geom[b + 10u]);
     vec3 t = vec3(dot(u_R0, mean), dot(u_R1, mean), dot(u_R2, mean)) + u_T;
     if (!(t.z > u_near)) { cull(); return; }
 
-    // EWA: Sigma2 = J W Sigma W^T J^T, with t.xy/t.z clamped to 1.3x the frustum.
+    // EWA: Sigma2 = J W Sigma W^T J^T with Sigma = M M^T, M = R(q) S, so Sigma2 = P P^T with the
+    // 2x3 P = J W M. Keeping the factor makes det(Sigma2) = |p0 x p1|^2: no cancellation even for
+    // needle-like or vanishing Gaussians. t.xy/t.z is clamped to 1.3x the frustum.
     float iz = 1.0 / t.z;
     vec2 lim_lo = (-u_principal - 0.15 * u_viewport) / u_focal;
     vec2 lim_hi = (u_viewport - u_principal + 0.15 * u_viewport) / u_focal;
     vec2 txy = clamp(t.xy * iz, lim_lo, lim_hi);
     vec3 a = u_focal.x * iz * (u_R0 - txy.x * u_R2);
     vec3 c = u_focal.y * iz * (u_R1 - txy.y * u_R2);
-    mat3 S = mat3(geom[b + 4u], geom[b + 5u], geom[b + 6u],
-                  geom[b + 5u], geom[b + 7u], geom[b + 8u],
-                  geom[b + 6u], geom[b + 8u], geom[b + 9u]);
-    vec3 Sa = S * a;
-    vec3 Sc = S * c;
-    float sxx = dot(a, Sa) + LOW_PASS;
-    float sxy = dot(a, Sc);
-    float syy = dot(c, Sc) + LOW_PASS;
-    float det0 = sxx * syy - sxy * sxy;
-    if (!(det0 > 0.0)) { cull(); return; }
+    mat3 M = rotation(quat);
+    M[0] *= scale.x;
+    M[1] *= scale.y;
+    M[2] *= scale.z;
+    vec3 p0 = a * M;  // row vector a^T M
+    vec3 p1 = c * M;
+    float sxx = dot(p0, p0);
+    float syy = dot(p1, p1);
+    float sxy = dot(p0, p1);
+    vec3 cr = cross(p0, p1);
+    float det_p = dot(cr, cr);
 
-    // Circle of confusion (pixels) and the aperture Gaussian k R^2 I.
+    // Circle of confusion (pixels); the low-pass 0.3 px^2 and the aperture Gaussian k R^2 I are
+    // both isotropic, so det(Sigma2 + s I) = det_p + s (sxx + syy) + s^2 stays a sum of positives.
     float R = 0.5 * u_aperture * abs(iz - u_inv_focus);
-    float add = u_k * R * R;
+    float add = LOW_PASS + u_k * R * R;
+    float det0 = det_p + LOW_PASS * (sxx + syy) + LOW_PASS * LOW_PASS;
+    float det = det_p + add * (sxx + syy) + add * add;
     sxx += add;
     syy += add;
-    float det = sxx * syy - sxy * sxy;
-    if (!(det > 0.0) || isinf(det)) { cull(); return; }
+    if (!(det0 > 0.0) || !(det > 0.0) || isinf(det)) { cull(); return; }
 
     float beta = sqrt(det0 / det);
     float o = opacity;
@@ -100,19 +118,19 @@ void main() {
         return;
     }
 
-    // Quad along the ellipse's eigen-axes, tight to the support.
-    float mid = 0.5 * (sxx + syy);
-    float rad = sqrt(max(0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy, 0.0));
-    float l1 = mid + rad;
-    float l2 = max(mid - rad, 0.0);
-    vec2 e1a = vec2(sxy, l1 - sxx);
-    vec2 e1b = vec2(l1 - syy, sxy);
-    vec2 e1 = dot(e1a, e1a) > dot(e1b, e1b) ? e1a : e1b;
+    // Eigen-axes without cancellation: l1 is a sum of positives, l2 = det / l1, and e1 is built
+    // from the larger diagonal entry.
+    float half_diff = 0.5 * (sxx - syy);
+    float l1 = 0.5 * (sxx + syy) + sqrt(half_diff * half_diff + sxy * sxy);
+    float l2 = det / l1;
+    vec2 e1 = half_diff >= 0.0 ? vec2(l1 - syy, sxy) : vec2(sxy, l1 - sxx);
     e1 = dot(e1, e1) > 0.0 ? normalize(e1) : vec2(1.0, 0.0);
     vec2 e2 = vec2(-e1.y, e1.x);
+    // The quad is the ellipse's bounding rectangle (r std-devs on both axes) plus half a pixel, so
+    // that the rasteriser's snapping of corners never drops a pixel centre inside the ellipse.
+    float r = sqrt(r2);
     vec2 corner = vec2((gl_VertexID & 1) == 0 ? -1.0 : 1.0, (gl_VertexID & 2) == 0 ? -1.0 : 1.0);
-    vec2 offset = corner.x * sqrt(r2 * l1) * e1 + corner.y * sqrt(r2 * l2) * e2;
-    vec2 px = p + offset;
+    vec2 px = p + corner.x * (r * sqrt(l1) + 0.5) * e1 + corner.y * (r * sqrt(l2) + 0.5) * e2;
 
     vec3 colour = vec3(base[g * 3u], base[g * 3u + 1u], base[g * 3u + 2u]);
 #if SH_DEGREE > 0
@@ -123,8 +141,10 @@ void main() {
 
     if (u_count && gl_VertexID == 0) atomicAdd(drawn, 1u);
     gl_Position = vec4(2.0 * px.x / u_viewport.x - 1.0, 1.0 - 2.0 * px.y / u_viewport.y, 0.0, 1.0);
-    v_offset = offset;
-    v_conic = vec3(syy, -sxy, sxx) / det;
+    vec2 flip = vec2(1.0, -1.0);
+    v_centre = vec2(p.x, u_viewport.y - p.y);
+    v_axis1 = flip * e1 * inversesqrt(l1);
+    v_axis2 = flip * e2 * inversesqrt(l2);
     v_opacity = o;
     v_colour = colour;
     v_depth = t.z;

@@ -1,0 +1,165 @@
+"""The GL renderer against the independent CPU reference and the thin-lens accumulation."""
+
+import numpy as np
+import pytest
+
+from conftest import psnr, random_scene
+from dofview.accumulate import accumulate
+from dofview.camera import look_at
+from dofview.frame import RenderSettings
+from dofview.lens import Lens
+from dofview.reference import render_reference
+from dofview.renderer import Renderer
+from dofview.scene import GaussianScene
+from dofview.tonemap import Tonemap, display, to_uint8
+
+TAUS = [0.0, 1 / 255, 2 / 255]
+CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
+
+
+def assert_matches_reference(gl, reference, min_psnr=45.0, depth_rtol=1e-3):
+    """Linear image PSNR ≥ 45 dB (peak: max(1, brightest reference value)) and depth within 1e-3
+    relative where the reference α > 0.5. Pixels where a contribution sits within 1e-5 of the τ
+    cut (a float32/float64 coin flip) are left out of the depth check; they must stay rare."""
+    ref, near_cut = reference
+    assert np.all(np.isfinite(gl.rgba)) and np.all(np.isfinite(gl.depth))
+    peak = max(float(ref.rgba.max()), 1.0)
+    assert psnr(gl.rgba, ref.rgba, peak) >= min_psnr
+    assert near_cut.mean() <= 0.005
+    covered = (ref.alpha > 0.5) & ~near_cut
+    assert covered.any()
+    rel = np.abs(gl.depth[covered] - ref.depth[covered]) / ref.depth[covered]
+    assert rel.max() <= depth_rtol
+
+
+@pytest.mark.parametrize("degree", [0, 1, 2, 3])
+@pytest.mark.parametrize("aperture", [0.0, 30.0, 120.0])
+@pytest.mark.parametrize("tau", TAUS)
+def test_gl_matches_cpu_reference(degree, aperture, tau):
+    scene = random_scene(degree=degree, seed=degree)
+    settings = RenderSettings(tau=tau)
+    lens = Lens(focus=4.5, aperture=aperture)
+    gl = Renderer(scene).render(CAM, lens, settings)
+    ref = render_reference(scene, CAM, lens, settings, margins=True)
+    assert_matches_reference(gl, ref)
+
+
+@pytest.mark.parametrize("norm", ["none", "energy", "optical-depth"])
+@pytest.mark.parametrize("blend_linear", [False, True])
+def test_gl_matches_reference_for_every_option(norm, blend_linear):
+    scene = random_scene(seed=7, colour_space="srgb")
+    settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear)
+    lens = Lens(focus=3.0, aperture=80.0)
+    assert_matches_reference(Renderer(scene).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
+
+
+def test_linear_hdr_scene_matches_reference():
+    scene = random_scene(seed=3, colour_space="linear")
+    scene.sh_dc *= 40.0  # radiance far above 1
+    lens = Lens(focus=6.0, aperture=50.0)
+    gl = Renderer(scene).render(CAM, lens)
+    ref = render_reference(scene, CAM, lens, margins=True)
+    assert ref[0].rgba.max() > 10
+    assert_matches_reference(gl, ref)
+
+
+def test_aperture_zero_is_the_pinhole_image_at_any_focus():
+    scene = random_scene(seed=11)
+    r = Renderer(scene)
+    pinhole = r.render(CAM, Lens(focus=1.0, aperture=0.0))
+    for focus in (0.5, 5.0, np.inf):
+        again = r.render(CAM, Lens(focus=focus, aperture=0.0))
+        np.testing.assert_array_equal(again.rgba, pinhole.rgba)
+
+
+def test_focus_plane_stays_sharp_and_blur_grows_away_from_it():
+    """Two small Gaussians at z = 3 and z = 6; focusing on one keeps it (nearly) as in the pinhole."""
+    scene = GaussianScene(means=[[-0.6, 0, 3.0], [1.7, 0, 6.0]], quats=[[1, 0, 0, 0]] * 2,
+                          scales=[[0.01] * 3] * 2, opacities=[0.9, 0.9], sh_dc=[[1, 1, 1]] * 2)
+    r = Renderer(scene)
+    cam = look_at([0, 0, 0], [0, 0, 1], 128, 64, 60)
+    pin = r.render(cam, Lens(3.0, 0.0), RenderSettings(tau=0)).alpha
+    near_focus = r.render(cam, Lens(3.0, 200.0), RenderSettings(tau=0)).alpha
+    left, right = slice(0, 64), slice(64, 128)
+    np.testing.assert_allclose(near_focus[:, left], pin[:, left], atol=1e-6)
+    # the far one spreads: its peak drops and its footprint widens
+    assert near_focus[:, right].max() < 0.5 * pin[:, right].max()
+    assert (near_focus[:, right] > 1e-3).sum() > 4 * (pin[:, right] > 1e-3).sum()
+
+
+def test_single_gaussian_blur_matches_thin_lens_second_moment():
+    """A small Gaussian off the focus plane: second moment of the single-pass blur vs 256-sample
+    accumulation of pinhole renders, within 5% (τ = 0 so that no faint tail is cut)."""
+    scene = GaussianScene(means=[[0.0, 0.0, 2.0]], quats=[[1, 0, 0, 0]], scales=[[0.01] * 3],
+                          opacities=[0.3], sh_dc=[[1, 1, 1]])
+    cam = look_at([0, 0, 0], [0, 0, 1], 97, 97, 60)
+    r = Renderer(scene)
+    settings = RenderSettings(tau=0.0)
+    lens = Lens(focus=4.0, aperture=64.0)  # R = ½·64·|1/2 − 1/4| = 8 px
+    single = r.render(cam, lens, settings).alpha
+    acc = accumulate(lambda c: r.render(c, Lens(lens.focus, 0.0), settings), cam, lens, samples=256).alpha
+
+    def moments(img):
+        y, x = np.mgrid[: img.shape[0], : img.shape[1]] + 0.5
+        m = img.sum()
+        mx, my = (img * x).sum() / m, (img * y).sum() / m
+        return m, (img * (x - mx) ** 2).sum() / m, (img * (y - my) ** 2).sum() / m
+
+    m1, vx1, vy1 = moments(single)
+    m2, vx2, vy2 = moments(acc)
+    assert vx2 > 10  # the reference really is blurred (pinhole variance ≈ 0.4 px²)
+    assert vx1 == pytest.approx(vx2, rel=0.05)
+    assert vy1 == pytest.approx(vy2, rel=0.05)
+    assert m1 == pytest.approx(m2, rel=0.02)  # energy-preserving opacity keeps the total
+
+
+def test_gpu_tonemap_matches_numpy():
+    scene = random_scene(seed=5)
+    r = Renderer(scene)
+    for tm in (Tonemap(), Tonemap(exposure=4.0, gamma=2.2, background=(0.2, 0.5, 1.0)), Tonemap(exposure=0.3, gamma=1.0)):
+        frame = r.render(CAM, Lens(4.0, 40.0))
+        gpu = r.display_image(tm).astype(int)
+        cpu = to_uint8(display(frame.rgba, frame.encoded, tm)).astype(int)
+        assert np.abs(gpu - cpu).max() <= 1
+
+
+def test_srgb_scene_at_zero_ev_reproduces_the_blend():
+    """Exposure is applied in linear light: at 0 EV and γ = 2.2 an sRGB scene shows its trained
+    (display-encoded) blend unchanged — gamma is not applied twice."""
+    scene = random_scene(seed=6)
+    r = Renderer(scene)
+    r.draw(CAM, Lens(4.0, 0.0))
+    blended = np.frombuffer(r.colour_tex.read(), np.float32).reshape(72, 96, 4)[::-1, :, :3]
+    np.testing.assert_allclose(r.display_image(Tonemap()).astype(int), to_uint8(blended).astype(int), atol=1)
+
+
+def test_lens_change_does_not_resort(monkeypatch):
+    scene = random_scene(seed=2)
+    r = Renderer(scene)
+    calls = []
+    import dofview.renderer as mod
+
+    real = mod.front_to_back
+    monkeypatch.setattr(mod, "front_to_back", lambda m, c: calls.append(1) or real(m, c))
+    r.render(CAM, Lens(4.0, 0.0))
+    r.render(CAM, Lens(2.0, 90.0), RenderSettings(tau=0.0))
+    assert len(calls) == 1
+    r.render(look_at([0.3, 0, 0], [0, 0, 5], 96, 72, 60), Lens(2.0, 90.0))
+    assert len(calls) == 2
+
+
+def test_culling_counts_and_tau_culls_faint_blurred_gaussians():
+    scene = random_scene(seed=4)
+    r = Renderer(scene)
+    r.draw(CAM, Lens(4.5, 0.0), RenderSettings(tau=0.0), count=True)
+    all_drawn = r.stats.drawn
+    assert 0 < all_drawn <= scene.count
+    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255), count=True)
+    assert r.stats.drawn < all_drawn  # blurred o·β fell below τ: those are never drawn
+
+
+def test_degree0_scene_has_no_sh_buffer_and_degree3_has_one():
+    r0 = Renderer(random_scene(degree=0))
+    r3 = Renderer(random_scene(degree=3))
+    assert 2 not in r0._buffers
+    assert r3._buffers[2].size == r3.scene.count * 15 * 3 * 4
