@@ -103,3 +103,40 @@ def exposure_from_shutter(t: float, fnumber: float) -> float:
     if not (t > 0 and math.isfinite(t) and fnumber > 0 and math.isfinite(fnumber)):
         raise DofviewError(f"exposure time and f-number must be > 0, got t={t}, N={fnumber}")
     return float(t / fnumber ** 2)
+
+
+# ---- the per-Gaussian lens math, written once for numpy arrays and torch tensors alike ----------
+# (only arithmetic and the array's own sqrt/exp/log, so the CPU reference and the trainer share
+# it; shaders/splat.vert is its GPU twin, held equal by the GL-vs-reference tests)
+LOW_PASS = 0.3  # px², the reference rasteriser's screen-space low-pass filter
+ALPHA_MAX = 0.99
+
+
+def coc(inv_z, aperture, inv_focus):
+    """CoC radius in pixels, R = ½·A·|1/z − 1/d_f|, from the inverse depth 1/z (any array)."""
+    return 0.5 * aperture * abs(inv_z - inv_focus)
+
+
+def blur_footprint(sxx, sxy, syy, det_p, radius, k):
+    """Add the low-pass and the aperture Gaussian k·R²·I to a projected covariance P Pᵀ.
+
+    ``sxx, sxy, syy`` are the entries of P Pᵀ (px²), ``det_p`` = |p₀ × p₁|² its determinant (kept
+    as a sum of squares so it never cancels), ``radius`` the CoC radius. Returns the blurred
+    (sxx, sxy, syy, det) and β = sqrt(det Σ₂ / det Σ₂′), Σ₂ being the pinhole footprint with its
+    low-pass. Every determinant is a sum of positives.
+    """
+    add = LOW_PASS + k * radius * radius
+    trace = sxx + syy
+    det0 = det_p + LOW_PASS * trace + LOW_PASS * LOW_PASS
+    det = det_p + add * trace + add * add
+    beta = (det0 / det) ** 0.5
+    return sxx + add, sxy, syy + add, det, beta
+
+
+def normalise_opacity(opacity, beta, mode: str, xp=np):
+    """Opacity o′ of a blurred Gaussian: "energy" o·β (Eq. 5), "optical-depth" 1 − (1 − o)^β, "none"."""
+    if mode == "energy":
+        return opacity * beta
+    if mode == "optical-depth":
+        return 1.0 - xp.exp(beta * xp.log(1.0 - xp.clip(opacity, 0.0, ALPHA_MAX)))
+    return opacity

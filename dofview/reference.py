@@ -12,12 +12,9 @@ import numpy as np
 
 from .camera import Camera
 from .frame import Frame, RenderSettings, depth_from_weighted
-from .lens import Lens
+from .lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
 from .scene import SH_C0, GaussianScene
 from .tonemap import decode
-
-LOW_PASS = 0.3
-ALPHA_MAX = 0.99
 
 _C1 = 0.4886025119029199
 _C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
@@ -56,12 +53,11 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     (M, 2) pixels, ``cov`` (M, 3) the blurred 2D covariance (xx, xy, yy) px², ``opacity`` (M,) o′,
     ``depth`` (M,) camera z, ``r2`` (M,) the support bound on dᵀΣ⁻¹d.
     """
-    cov3 = scene.covariances()
     t = camera.world_to_camera(scene.means)
     keep = t[:, 2] > settings.near
     idx = np.nonzero(keep)[0]
     idx = idx[np.argsort(t[idx, 2], kind="stable")]
-    t, cov3 = t[idx], cov3[idx]
+    t = t[idx]
     fx, fy, cx, cy, w, h = camera.fx, camera.fy, camera.cx, camera.cy, camera.width, camera.height
     iz = 1.0 / t[:, 2]
     tx = np.clip(t[:, 0] * iz, (-cx - 0.15 * w) / fx, (w - cx + 0.15 * w) / fx)
@@ -69,29 +65,17 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     R = camera.R
     a = (fx * iz)[:, None] * (R[0][None] - tx[:, None] * R[2][None])
     c = (fy * iz)[:, None] * (R[1][None] - ty[:, None] * R[2][None])
-    S = np.empty((len(idx), 3, 3))
-    S[:, 0, 0], S[:, 0, 1], S[:, 0, 2] = cov3[:, 0], cov3[:, 1], cov3[:, 2]
-    S[:, 1, 0], S[:, 1, 1], S[:, 1, 2] = cov3[:, 1], cov3[:, 3], cov3[:, 4]
-    S[:, 2, 0], S[:, 2, 1], S[:, 2, 2] = cov3[:, 2], cov3[:, 4], cov3[:, 5]
-    Sa = np.einsum("nij,nj->ni", S, a)
-    Sc = np.einsum("nij,nj->ni", S, c)
-    sxx = np.einsum("ni,ni->n", a, Sa) + LOW_PASS
-    sxy = np.einsum("ni,ni->n", a, Sc)
-    syy = np.einsum("ni,ni->n", c, Sc) + LOW_PASS
-    det0 = sxx * syy - sxy * sxy
-    coc = lens.coc_radius(t[:, 2])
-    add = settings.k * coc * coc
-    sxx, syy = sxx + add, syy + add
-    det = sxx * syy - sxy * sxy
-    with np.errstate(divide="ignore", invalid="ignore"):
-        beta = np.sqrt(det0 / det)
-    o = scene.opacities[idx].astype(np.float64)
-    if settings.opacity_norm == "energy":
-        o = o * beta
-    elif settings.opacity_norm == "optical-depth":
-        o = 1.0 - np.exp(beta * np.log(1.0 - np.minimum(o, ALPHA_MAX)))
+    M = scene.rotation_matrices()[idx] * scene.scales[idx].astype(np.float64)[:, None, :]  # Σ = M Mᵀ
+    p0 = np.einsum("ni,nij->nj", a, M)
+    p1 = np.einsum("ni,nij->nj", c, M)
+    sxx, sxy, syy = (p0 * p0).sum(1), (p0 * p1).sum(1), (p1 * p1).sum(1)
+    det_p = (np.cross(p0, p1) ** 2).sum(1)
+    radius = coc(iz, lens.aperture, lens.inv_focus)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
+    o = normalise_opacity(scene.opacities[idx].astype(np.float64), beta, settings.opacity_norm)
     tau = settings.tau
-    ok = (det0 > 0) & np.isfinite(det) & (det > 0) & (o > 0) & (np.minimum(o, ALPHA_MAX) >= tau)
+    ok = np.isfinite(det) & (det > 0) & (o > 0) & (np.minimum(o, ALPHA_MAX) >= tau)
     with np.errstate(divide="ignore", invalid="ignore"):
         r2 = 2.0 * np.log(o / tau) if tau > 0 else np.full_like(o, 9.0)
     mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)

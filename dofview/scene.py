@@ -108,14 +108,10 @@ class GaussianScene:
         norm = np.linalg.norm(q, axis=1, keepdims=True)
         return np.where(norm > 1e-30, q / np.maximum(norm, 1e-300), np.array([1.0, 0, 0, 0]))
 
-    def covariances(self) -> np.ndarray:
-        """(N, 6) float64: upper triangle (xx, xy, xz, yy, yz, zz) of Σ = R S Sᵀ Rᵀ, scene units².
-
-        Computed in float64 on the host so that extreme scales (1e-8…1e4) and needle-like
-        Gaussians keep a positive semi-definite covariance before it is rounded to float32.
-        """
+    def rotation_matrices(self) -> np.ndarray:
+        """(N, 3, 3) float64 rotations R(q), world-from-local (so Σ = R S Sᵀ Rᵀ)."""
         w, x, y, z = self.unit_quats().T
-        rot = np.stack(
+        return np.stack(
             [
                 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
                 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
@@ -123,8 +119,3 @@ class GaussianScene:
             ],
             axis=1,
         ).reshape(-1, 3, 3)
-        m = rot * self.scales.astype(np.float64)[:, None, :]
-        cov = m @ m.transpose(0, 2, 1)
-        return np.stack(
-            [cov[:, 0, 0], cov[:, 0, 1], cov[:, 0, 2], cov[:, 1, 1], cov[:, 1, 2], cov[:, 2, 2]], axis=1
-        )
