@@ -1,8 +1,8 @@
 """OpenGL context and shader files.
 
 Shaders live in the top-level ``shaders/`` folder of a source checkout and in ``dofview/shaders``
-inside the wheel; both are found at run time. ``#include "file"`` lines are expanded and
-``#define``s inserted after ``#version``.
+inside the wheel; both are found at run time. ``#include "file"`` lines are expanded (``#include NAME``
+takes the file named by the define NAME) and ``#define``s are inserted after ``#version``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import moderngl
 
 from .errors import DofviewError
 
-_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
+_INCLUDE = re.compile(r'^\s*#include\s+(?:"([^"]+)"|(\w+))\s*$', re.M)
 GL_REQUIRED = 430  # SSBOs and atomics in the vertex stage
 
 
@@ -30,8 +30,9 @@ def shader_dir() -> Path:
 def load_shader(name: str, defines: dict[str, object] | None = None) -> str:
     """The text of ``shaders/name`` with includes expanded and ``defines`` set."""
     base = shader_dir()
+    defines = defines or {}
     src = (base / name).read_text()
-    src = _INCLUDE.sub(lambda m: (base / m.group(1)).read_text(), src)
+    src = _INCLUDE.sub(lambda m: (base / (m.group(1) or str(defines[m.group(2)]))).read_text(), src)
     if defines:
         head, _, rest = src.partition("\n")
         src = head + "\n" + "".join(f"#define {k} {v}\n" for k, v in defines.items()) + rest

@@ -17,6 +17,7 @@ from .camera import Camera
 from .frame import OPACITY_NORMS, Frame, RenderSettings, depth_from_weighted
 from .gl import check_size, headless_context, load_shader
 from .lens import Lens
+from .packing import gpu_arrays
 from .scene import GaussianScene
 from .sort import front_to_back
 from .tonemap import Tonemap, decode
@@ -37,30 +38,24 @@ class Renderer:
     Args:
         scene: the scene; its arrays are uploaded once.
         ctx: a moderngl context (the viewer's window context); headless EGL when omitted.
+        packed: store attributes packed (≤ 128 B per Gaussian at SH degree 3, see packing.py)
+            rather than in float32.
     """
 
-    def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None) -> None:
+    def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
         self.ctx = ctx or headless_context()
         self.scene = scene
         self.encoded_scene = scene.colour_space == "srgb"
         self.stats = DrawStats(total=scene.count)
         n = max(scene.count, 1)  # GL refuses zero-sized buffers; an empty scene draws 0 instances
-        geom = np.zeros((n, 12), np.float32)
-        if scene.count:
-            geom[:, :3] = scene.means
-            geom[:, 3] = scene.opacities
-            geom[:, 4:8] = scene.unit_quats()
-            geom[:, 8:11] = scene.scales
-        base = np.zeros((n, 3), np.float32)
-        if scene.count:
-            base[:] = 0.28209479177387814 * scene.sh_dc + 0.5
-        self._buffers = {0: self.ctx.buffer(geom.tobytes()), 1: self.ctx.buffer(base.tobytes())}
+        self.packed = packed
+        arrays = gpu_arrays(scene, packed) if scene.count else {0: np.zeros(16, np.uint32)}
+        self._buffers = {b: self.ctx.buffer(np.ascontiguousarray(a).tobytes()) for b, a in arrays.items()}
         degree = scene.sh_degree
-        if degree > 0:
-            self._buffers[2] = self.ctx.buffer(scene.sh_rest.tobytes())
         self._order = self.ctx.buffer(reserve=4 * n)
         self._counter = self.ctx.buffer(reserve=4)
-        defines = {"SH_DEGREE": degree, "SH_REST": (degree + 1) ** 2 - 1}
+        defines = {"SH_DEGREE": degree, "SH_REST": (degree + 1) ** 2 - 1,
+                   "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl"}
         self.program = self.ctx.program(
             vertex_shader=load_shader("splat.vert", defines), fragment_shader=load_shader("splat.frag"))
         self._vao = self.ctx.vertex_array(self.program, [])
@@ -77,6 +72,10 @@ class Renderer:
     def gpu_bytes(self) -> int:
         """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer)."""
         return sum(b.size for b in self._buffers.values()) + self._order.size
+
+    @property
+    def bytes_per_gaussian(self) -> float:
+        return self.gpu_bytes / max(self.scene.count, 1)
 
     def _targets(self, width: int, height: int) -> None:
         if self._size == (width, height):

@@ -1,11 +1,7 @@
 // Real spherical harmonics, degrees 1..3, in the basis and sign convention of the reference 3DGS
 // code (the coefficients in trained files assume it). Degree 0 is folded into the base colour.
+// sh_coeff(g, j) comes from the fetch_*.glsl layout in use.
 #if SH_DEGREE > 0
-vec3 sh_coeff(uint g, int j) {
-    uint o = g * uint(SH_REST * 3) + uint(j * 3);
-    return vec3(sh_rest[o], sh_rest[o + 1u], sh_rest[o + 2u]);
-}
-
 vec3 sh_view_terms(uint g, vec3 dir) {
     float x = dir.x, y = dir.y, z = dir.z;
     vec3 c = 0.4886025119029199 * (-y * sh_coeff(g, 0) + z * sh_coeff(g, 1) - x * sh_coeff(g, 2));

@@ -2,16 +2,13 @@
 // One instance per Gaussian, four vertices per instance (a triangle strip): project the
 // Gaussian (EWA), add the circle of confusion to its footprint, and emit a quad that bounds
 // exactly the ellipse where its alpha reaches tau. Culled Gaussians become a degenerate quad.
-// SH_DEGREE and SH_REST (coefficients beyond degree 0, per channel) are #defined by the loader.
+// SH_DEGREE, SH_REST (coefficients beyond degree 0, per channel) and FETCH (the storage layout's
+// include file) are #defined by the loader.
 
-layout(std430, binding = 0) readonly buffer Geometry { float geom[]; };   // mean.xyz, opacity, quat.wxyz, scale.xyz, pad
-layout(std430, binding = 1) readonly buffer BaseColour { float base[]; }; // SH_C0*dc + 0.5, per channel
 layout(std430, binding = 3) readonly buffer Order { uint order[]; };      // back-to-front indices
 layout(std430, binding = 4) buffer Counter { uint drawn; };
-#if SH_DEGREE > 0
-layout(std430, binding = 2) readonly buffer ShRest { float sh_rest[]; };
-#endif
 
+#include FETCH
 #include "sh.glsl"
 
 uniform vec3 u_R0;          // rows of the world → camera rotation
@@ -61,11 +58,10 @@ mat3 rotation(vec4 q) {  // unit quaternion (w, x, y, z) -> rotation matrix (col
 
 void main() {
     uint g = order[gl_InstanceID];
-    uint b = g * 12u;
-    vec3 mean = vec3(geom[b], geom[b + 1u], geom[b + 2u]);
-    float opacity = geom[b + 3u];
-    vec4 quat = vec4(geom[b + 4u], geom[b + 5u], geom[b + 6u], geom[b + 7u]);
-    vec3 scale = vec3(geom[b + 8u], geom[b + 9u], geom[b + 10u]);
+    vec3 mean = load_mean(g);
+    float opacity = load_opacity(g);
+    vec4 quat = load_quat(g);
+    vec3 scale = load_scale(g);
     vec3 t = vec3(dot(u_R0, mean), dot(u_R1, mean), dot(u_R2, mean)) + u_T;
     if (!(t.z > u_near)) { cull(); return; }
 
@@ -132,7 +128,7 @@ void main() {
     vec2 corner = vec2((gl_VertexID & 1) == 0 ? -1.0 : 1.0, (gl_VertexID & 2) == 0 ? -1.0 : 1.0);
     vec2 px = p + corner.x * (r * sqrt(l1) + 0.5) * e1 + corner.y * (r * sqrt(l2) + 0.5) * e2;
 
-    vec3 colour = vec3(base[g * 3u], base[g * 3u + 1u], base[g * 3u + 2u]);
+    vec3 colour = load_base(g);
 #if SH_DEGREE > 0
     colour += sh_view_terms(g, normalize(mean - u_eye));
 #endif

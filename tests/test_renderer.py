@@ -36,10 +36,12 @@ def assert_matches_reference(gl, reference, min_psnr=45.0, depth_rtol=1e-3):
 @pytest.mark.parametrize("aperture", [0.0, 30.0, 120.0])
 @pytest.mark.parametrize("tau", TAUS)
 def test_gl_matches_cpu_reference(degree, aperture, tau):
+    """The renderer's math, in its float32 storage layout, against the float64 reference.
+    (The packed layout's own error is measured against this one in test_packing.py.)"""
     scene = random_scene(degree=degree, seed=degree)
     settings = RenderSettings(tau=tau)
     lens = Lens(focus=4.5, aperture=aperture)
-    gl = Renderer(scene).render(CAM, lens, settings)
+    gl = Renderer(scene, packed=False).render(CAM, lens, settings)
     ref = render_reference(scene, CAM, lens, settings, margins=True)
     assert_matches_reference(gl, ref)
 
@@ -50,14 +52,14 @@ def test_gl_matches_reference_for_every_option(norm, blend_linear):
     scene = random_scene(seed=7, colour_space="srgb")
     settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear)
     lens = Lens(focus=3.0, aperture=80.0)
-    assert_matches_reference(Renderer(scene).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
+    assert_matches_reference(Renderer(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
 
 
 def test_linear_hdr_scene_matches_reference():
     scene = random_scene(seed=3, colour_space="linear")
     scene.sh_dc *= 40.0  # radiance far above 1
     lens = Lens(focus=6.0, aperture=50.0)
-    gl = Renderer(scene).render(CAM, lens)
+    gl = Renderer(scene, packed=False).render(CAM, lens)
     ref = render_reference(scene, CAM, lens, margins=True)
     assert ref[0].rgba.max() > 10
     assert_matches_reference(gl, ref)
@@ -158,8 +160,12 @@ def test_culling_counts_and_tau_culls_faint_blurred_gaussians():
     assert r.stats.drawn < all_drawn  # blurred o·β fell below τ: those are never drawn
 
 
-def test_degree0_scene_has_no_sh_buffer_and_degree3_has_one():
+def test_degree0_scene_has_no_sh_buffer_and_degree3_fits_128_bytes():
     r0 = Renderer(random_scene(degree=0))
     r3 = Renderer(random_scene(degree=3))
     assert 2 not in r0._buffers
-    assert r3._buffers[2].size == r3.scene.count * 15 * 3 * 4
+    assert r0.bytes_per_gaussian == 32 + 4  # core + draw order
+    assert r3._buffers[2].size == r3.scene.count * 15 * 3 * 2
+    assert r3.bytes_per_gaussian <= 128
+    full = Renderer(random_scene(degree=3), packed=False)
+    assert full.bytes_per_gaussian == 14 * 4 + 45 * 4 + 4
