@@ -118,7 +118,7 @@ def add_lens_args(p: argparse.ArgumentParser) -> None:
 
 # ---- building objects from arguments ------------------------------------------------------------
 def load_scene_arg(args: argparse.Namespace, progress: bool = True) -> GaussianScene:
-    from .io import load_scene
+    from .scenefile import load_scene
 
     scene = load_scene(args.scene, progress=progress)
     if args.colour_space:

@@ -7,3 +7,7 @@ traceback.
 
 class DofviewError(Exception):
     """A problem the user can fix: the message names the file or argument and what is wrong."""
+
+
+class DofviewWarning(UserWarning):
+    """Something in the input was repaired or dropped (e.g. Gaussians with NaN values)."""

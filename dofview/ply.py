@@ -1,0 +1,277 @@
+"""Inria 3DGS ``.ply`` files: read into a :class:`GaussianScene`, write back in the same format.
+
+A 3DGS PLY has one ``vertex`` element with float properties x, y, z; optional nx, ny, nz;
+f_dc_0..2; f_rest_0..M−1 with M ∈ {0, 9, 24, 45} (SH degree 0–3, channel-major); opacity (logit);
+scale_0..2 (log); rot_0..3 (w, x, y, z, not normalised). Other properties are ignored.
+
+Binary bodies are mapped, not read whole, and checked against the header's vertex count before
+anything is allocated. ASCII files go through plyfile. dofview records the scene's colour space as
+a header comment ``dofview colour_space linear|srgb``; files without it are standard (sRGB).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .errors import DofviewError, DofviewWarning
+from .scene import COLOUR_SPACES, GaussianScene
+
+PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+            "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
+REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}  # f_rest values → SH degree
+MAX_HEADER = 1 << 20
+_COLOUR_COMMENT = re.compile(r"^dofview colour_space (\w+)$")
+CHUNK = 1 << 18  # Gaussians activated per step (bounds temporaries, drives the progress bar)
+
+
+class _Element:
+    def __init__(self, name: str, count: int) -> None:
+        self.name, self.count = name, count
+        self.props: list[tuple[str, str | None]] = []  # (name, numpy type or None for a list)
+
+
+def _parse_header(path: Path, head: bytes) -> tuple[str, list[_Element], list[str], int]:
+    """(format, elements, comments, header length in bytes) from the start of a file."""
+    if not head.startswith(b"ply"):
+        raise DofviewError(f"{path}: not a PLY file (it does not start with 'ply')")
+    end = head.find(b"end_header")
+    if end < 0:
+        raise DofviewError(f"{path}: PLY header has no 'end_header' line (file cut short or not a PLY)")
+    nl = head.find(b"\n", end)
+    if nl < 0:
+        raise DofviewError(f"{path}: PLY header has no line break after 'end_header' (file cut short)")
+    try:
+        text = head[:end].decode("ascii")
+    except UnicodeDecodeError:
+        raise DofviewError(f"{path}: PLY header holds non-ASCII bytes") from None
+    fmt, elements, comments = None, [], []
+    for lineno, line in enumerate(text.replace("\r", "").split("\n")[1:], start=2):
+        words = line.split()
+        if not words:
+            continue
+        kw = words[0]
+        if kw == "format":
+            if len(words) < 2 or words[1] not in ("ascii", "binary_little_endian", "binary_big_endian"):
+                raise DofviewError(f"{path}: unknown PLY format in header line {lineno}: {line.strip()!r}")
+            fmt = words[1]
+        elif kw in ("comment", "obj_info"):
+            comments.append(line.split(None, 1)[1].strip() if len(words) > 1 else "")
+        elif kw == "element":
+            if len(words) != 3 or not words[2].isdigit():
+                raise DofviewError(f"{path}: bad element line {lineno} in PLY header: {line.strip()!r}")
+            elements.append(_Element(words[1], int(words[2])))
+        elif kw == "property":
+            if not elements:
+                raise DofviewError(f"{path}: property before any element in PLY header line {lineno}")
+            if len(words) == 3 and words[1] in PLY_TYPES:
+                elements[-1].props.append((words[2], PLY_TYPES[words[1]]))
+            elif len(words) == 5 and words[1] == "list" and words[2] in PLY_TYPES and words[3] in PLY_TYPES:
+                elements[-1].props.append((words[4], None))
+            else:
+                raise DofviewError(f"{path}: bad property line {lineno} in PLY header: {line.strip()!r}")
+        else:
+            raise DofviewError(f"{path}: unexpected PLY header line {lineno}: {line.strip()!r}")
+    if fmt is None:
+        raise DofviewError(f"{path}: PLY header has no 'format' line")
+    return fmt, elements, comments, nl + 1
+
+
+def _check_vertex(path: Path, elements: list[_Element]) -> _Element:
+    vertex = next((e for e in elements if e.name == "vertex"), None)
+    if vertex is None:
+        raise DofviewError(f"{path}: PLY file has no 'vertex' element, so no Gaussians")
+    types = dict(vertex.props)
+    missing = [p for p in REQUIRED if p not in types]
+    if missing:
+        hint = ""
+        if {"x", "y", "z"} <= types.keys() and ({"red", "green", "blue"} & types.keys() or "f_dc_0" not in types):
+            hint = " — this looks like a plain point cloud, not a trained 3D Gaussian Splatting scene"
+        raise DofviewError(f"{path}: missing Gaussian properties {', '.join(missing)}{hint}")
+    rest = sorted(int(p[7:]) for p in types if re.fullmatch(r"f_rest_\d+", p))
+    if len(rest) not in REST_COUNTS or rest != list(range(len(rest))):
+        raise DofviewError(f"{path}: {len(rest)} f_rest_* properties is no SH degree "
+                           f"(expected 0, 9, 24 or 45 numbered from f_rest_0)")
+    wanted = list(REQUIRED) + [f"f_rest_{i}" for i in rest]
+    bad = [f"{p} ({'list' if types[p] is None else types[p]})" for p in wanted if types[p] not in ("f4", "f8")]
+    if bad:
+        raise DofviewError(f"{path}: Gaussian properties must be float or double, got {', '.join(bad)}")
+    return vertex
+
+
+def _binary_columns(path: Path, fmt: str, elements: list[_Element], vertex: _Element, header_len: int,
+                    size: int) -> np.ndarray | None:
+    """The vertex rows as a read-only structured memmap, or None when the layout needs plyfile."""
+    order = "<" if fmt == "binary_little_endian" else ">"
+    offset = header_len
+    for e in elements:
+        if any(t is None for _, t in e.props):
+            return None  # list properties before/in the vertex element: sizes are per row
+        dtype = np.dtype([(n, order + t) for n, t in e.props])
+        if e is vertex:
+            need = dtype.itemsize * e.count
+            if offset + need > size:
+                raise DofviewError(
+                    f"{path}: file is cut short: the header announces {e.count} Gaussians "
+                    f"({need} bytes) but only {max(size - offset, 0)} bytes follow it")
+            if e.count == 0:
+                return np.zeros(0, dtype)
+            return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=(e.count,))
+        offset += dtype.itemsize * e.count
+    return None
+
+
+def _plyfile_rows(path: Path) -> np.ndarray:
+    import plyfile
+
+    try:
+        data = plyfile.PlyData.read(str(path))
+        return data["vertex"].data
+    except (plyfile.PlyParseError, ValueError, IndexError, KeyError, EOFError) as e:
+        raise DofviewError(f"{path}: cannot parse PLY body ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+
+
+def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = None) -> GaussianScene:
+    """Read a 3DGS ``.ply`` into an activated :class:`GaussianScene` (float32 arrays).
+
+    Opacity goes through a sigmoid, scales through exp (both clamped so that no value overflows),
+    quaternions are normalised (a zero one becomes the identity). Gaussians with a NaN or infinite
+    value in any property are dropped with one :class:`DofviewWarning` that counts them.
+    ``progress(done, total)`` is called as Gaussians are activated.
+
+    Raises:
+        DofviewError: the file is missing, unreadable, not a 3DGS PLY, or cut short.
+    """
+    path = Path(path)
+    try:
+        size = os.stat(path).st_size
+        with open(path, "rb") as f:
+            head = f.read(MAX_HEADER)
+    except IsADirectoryError:
+        raise DofviewError(f"{path}: is a directory, not a .ply file") from None
+    except FileNotFoundError:
+        raise DofviewError(f"{path}: no such file") from None
+    except OSError as e:
+        raise DofviewError(f"{path}: cannot read ({e.strerror or e})") from None
+    if size == 0:
+        raise DofviewError(f"{path}: file is empty")
+    fmt, elements, comments, header_len = _parse_header(path, head)
+    vertex = _check_vertex(path, elements)
+    rows = None
+    if fmt != "ascii":
+        rows = _binary_columns(path, fmt, elements, vertex, header_len, size)
+    if rows is None:
+        rows = _plyfile_rows(path)
+    colour_space = "srgb"
+    for c in comments:
+        m = _COLOUR_COMMENT.match(c)
+        if m and m.group(1) in COLOUR_SPACES:
+            colour_space = m.group(1)
+    return _activate(path, rows, colour_space, progress)
+
+
+def _activate(path: Path, rows: np.ndarray, colour_space: str,
+              progress: Callable[[int, int], None] | None) -> GaussianScene:
+    n = rows.shape[0]
+    n_rest = sum(1 for name in rows.dtype.names if name.startswith("f_rest_"))
+    degree = REST_COUNTS[n_rest]
+    k1 = n_rest // 3
+    means = np.empty((n, 3), np.float32)
+    sh_dc = np.empty((n, 3), np.float32)
+    scales = np.empty((n, 3), np.float32)
+    quats = np.empty((n, 4), np.float32)
+    logits = np.empty(n, np.float32)
+    rest = np.empty((n, k1, 3), np.float32) if degree else None
+    finite = np.ones(n, bool)
+    for s in range(0, n, CHUNK):
+        e = min(s + CHUNK, n)
+        r = rows[s:e]
+        for i, a in enumerate("xyz"):
+            means[s:e, i] = r[a]
+        for i in range(3):
+            sh_dc[s:e, i] = r[f"f_dc_{i}"]
+            scales[s:e, i] = r[f"scale_{i}"]
+        for i in range(4):
+            quats[s:e, i] = r[f"rot_{i}"]
+        logits[s:e] = r["opacity"]
+        if rest is not None:
+            for c in range(3):  # channel-major in the file: f_rest[c·(K−1) + j] is (j, c)
+                for j in range(k1):
+                    rest[s:e, j, c] = r[f"f_rest_{c * k1 + j}"]
+        ok = (np.isfinite(means[s:e]).all(1) & np.isfinite(sh_dc[s:e]).all(1) & np.isfinite(scales[s:e]).all(1)
+              & np.isfinite(quats[s:e]).all(1) & np.isfinite(logits[s:e]))
+        if rest is not None:
+            ok &= np.isfinite(rest[s:e]).all((1, 2))
+        finite[s:e] = ok
+        if progress:
+            progress(e, n)
+    # exp stays finite and normal in float32 inside ±87
+    np.exp(np.clip(scales, -87.0, 87.0, out=scales), out=scales)
+    opacities = (1.0 / (1.0 + np.exp(-np.clip(logits, -87.0, 87.0)))).astype(np.float32)
+    norm = np.linalg.norm(quats.astype(np.float64), axis=1)
+    good_q = norm > 1e-30
+    quats[good_q] = (quats[good_q] / norm[good_q, None]).astype(np.float32)
+    quats[~good_q] = (1.0, 0.0, 0.0, 0.0)
+    dropped = int(n - finite.sum())
+    if dropped:
+        warnings.warn(f"{path}: dropped {dropped} of {n} Gaussians with NaN or infinite values", DofviewWarning,
+                      stacklevel=3)
+        keep = finite
+        means, quats, scales, opacities, sh_dc = means[keep], quats[keep], scales[keep], opacities[keep], sh_dc[keep]
+        rest = None if rest is None else rest[keep]
+    return GaussianScene(means=means, quats=quats, scales=scales, opacities=opacities, sh_dc=sh_dc,
+                         sh_rest=rest, colour_space=colour_space, name=path.stem)
+
+
+def ply_dtype(degree: int) -> np.dtype:
+    """The little-endian float32 vertex layout the reference 3DGS code writes for ``degree``."""
+    names = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
+    names += [f"f_rest_{i}" for i in range(3 * ((degree + 1) ** 2 - 1))]
+    names += ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
+    return np.dtype([(n, "<f4") for n in names])
+
+
+def scene_rows(scene: GaussianScene) -> np.ndarray:
+    """(N,) structured float32 rows of ``scene`` in the stored (pre-activation) form."""
+    dtype = ply_dtype(scene.sh_degree)
+    rows = np.zeros(scene.count, dtype)
+    for i, a in enumerate("xyz"):
+        rows[a] = scene.means[:, i]
+    for i in range(3):
+        rows[f"f_dc_{i}"] = scene.sh_dc[:, i]
+        rows[f"scale_{i}"] = np.log(np.maximum(scene.scales[:, i].astype(np.float64), 1e-38))
+    if scene.sh_rest is not None:
+        k1 = scene.sh_rest.shape[1]
+        for c in range(3):
+            for j in range(k1):
+                rows[f"f_rest_{c * k1 + j}"] = scene.sh_rest[:, j, c]
+    o = np.clip(scene.opacities.astype(np.float64), 1e-12, 1.0 - 1e-7)
+    rows["opacity"] = np.log(o) - np.log1p(-o)
+    for i in range(4):
+        rows[f"rot_{i}"] = scene.quats[:, i]
+    return rows
+
+
+def write_ply(scene: GaussianScene, path: str | Path) -> None:
+    """Write ``scene`` as a binary little-endian 3DGS ``.ply`` (whole or not at all)."""
+    from .atomic import atomic_output
+
+    rows = scene_rows(scene)
+    header = ["ply", "format binary_little_endian 1.0", f"comment dofview colour_space {scene.colour_space}",
+              f"element vertex {scene.count}"]
+    header += [f"property float {n}" for n in rows.dtype.names]
+    header.append("end_header")
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(("\n".join(header) + "\n").encode("ascii"))
+            f.write(rows.tobytes())
