@@ -110,9 +110,9 @@ def add_lens_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--gamma", type=_number(0, None, lo_open=True, what="gamma"), default=2.2, help="display gamma (default 2.2)")
     g.add_argument("--background", type=_colour, default=(0.0, 0.0, 0.0), help="display background r,g,b in [0,1] (PNG only; default black)")
     g = p.add_argument_group("splatting")
-    g.add_argument("--tau", type=_tau, default=RenderSettings.tau, help="minimum alpha τ in [0, 1), e.g. 2/255 (default 2/255)")
+    g.add_argument("--tau", type=_tau, default=RenderSettings.tau, help=f"minimum alpha τ in [0, 1), e.g. 2/255 (default {RenderSettings.tau * 255:g}/255)")
     g.add_argument("--k", type=_number(0, None, hi_open=False, what="k"), default=RenderSettings.k, help=f"aperture covariance scale k (default {RenderSettings.k:g})")
-    g.add_argument("--opacity-norm", choices=OPACITY_NORMS, default=RenderSettings.opacity_norm, help="opacity normalisation under blur (default energy)")
+    g.add_argument("--opacity-norm", choices=OPACITY_NORMS, default=RenderSettings.opacity_norm, help=f"opacity normalisation under blur (default {RenderSettings.opacity_norm})")
     g.add_argument("--blend-linear", action="store_true", help="decode splat colours to linear light before blending (sRGB scenes)")
 
 
@@ -192,6 +192,38 @@ def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap
     return " ".join(parts)
 
 
+def save_render(renderer, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings, scene_path: str,
+                output: Path, png: Path | None = None, half: bool = False,
+                lens_info: dict[str, float | None] | None = None) -> None:
+    """Render a view and write it as ``dofview render`` does: a linear EXR (exposure applied, Z, dofview
+    header) and optionally the tonemapped PNG. Shared by the CLI and the viewer's Save.
+
+    ``lens_info`` holds the physical-lens values for the header (fnumber, focal_mm, sensor_mm,
+    units_per_metre; None where not used).
+    """
+    from .exr import write_exr
+    from .png import write_png
+
+    frame = renderer.render(camera, lens, settings)
+    header = {
+        "dofview:version": __version__,
+        "dofview:scene": scene_path,
+        "dofview:camera": json.dumps({"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
+                                      "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist()}),
+        "dofview:lens": json.dumps({"focus": lens.focus, "aperture": lens.aperture, **(lens_info or {})}),
+        "dofview:exposure": tm.exposure,
+        "dofview:gamma": tm.gamma,
+        "dofview:render": json.dumps({"tau": settings.tau, "k": settings.k, "opacity_norm": settings.opacity_norm,
+                                      "blend_linear": settings.blend_linear,
+                                      "colour_space": renderer.scene.colour_space}),
+    }
+    rgba = frame.rgba.copy()
+    rgba[..., :3] *= tm.exposure
+    write_exr(output, rgba, frame.depth, half=half, header=header)
+    if png:
+        write_png(png, renderer.display_image(tm))
+
+
 # ---- render ---------------------------------------------------------------------------------------
 def _add_render(sub) -> None:
     p = sub.add_parser("render", help="render a scene headless to a linear HDR EXR (+ PNG)",
@@ -207,8 +239,6 @@ def _add_render(sub) -> None:
 
 
 def run_render(args: argparse.Namespace) -> int:
-    from .exr import write_exr
-    from .png import write_png
     from .renderer import Renderer
 
     if args.output.suffix.lower() != ".exr":
@@ -226,26 +256,9 @@ def run_render(args: argparse.Namespace) -> int:
         if focus is None:
             raise DofviewError(f"{args.scene}: nothing under the image centre to focus on; give --focus")
     lens = lens_from_args(args, camera, float(focus))
-    frame = renderer.render(camera, lens, settings)
-    header = {
-        "dofview:version": __version__,
-        "dofview:scene": str(args.scene),
-        "dofview:camera": json.dumps({"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
-                                      "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist()}),
-        "dofview:lens": json.dumps({"focus": lens.focus, "aperture": lens.aperture, "fnumber": args.fnumber,
-                                    "focal_mm": args.focal_mm, "sensor_mm": args.sensor_mm,
-                                    "units_per_metre": args.units_per_metre}),
-        "dofview:exposure": tm.exposure,
-        "dofview:gamma": tm.gamma,
-        "dofview:render": json.dumps({"tau": settings.tau, "k": settings.k, "opacity_norm": settings.opacity_norm,
-                                      "blend_linear": settings.blend_linear, "colour_space": scene.colour_space}),
-    }
-    rgba = frame.rgba.copy()
-    rgba[..., :3] *= tm.exposure
-    write_exr(args.output, rgba, frame.depth, half=args.half, header=header)
-    if args.png:
-        renderer.draw(camera, lens, settings)
-        write_png(args.png, renderer.display_image(tm))
+    save_render(renderer, camera, lens, tm, settings, str(args.scene), args.output, args.png, half=args.half,
+                lens_info={"fnumber": args.fnumber, "focal_mm": args.focal_mm, "sensor_mm": args.sensor_mm,
+                           "units_per_metre": args.units_per_metre})
     print(f"{args.output}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, aperture A={lens.aperture:.4g}, "
           f"exposure ×{tm.exposure:.4g}" + (f"; {args.png}" if args.png else ""), file=sys.stderr)
     return 0

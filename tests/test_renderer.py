@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from conftest import psnr, random_scene
+from conftest import assert_matches_reference, psnr, random_scene
 from dofview.accumulate import accumulate
 from dofview.camera import look_at
 from dofview.frame import RenderSettings
@@ -15,21 +15,6 @@ from dofview.tonemap import Tonemap, display, to_uint8
 
 TAUS = [0.0, 1 / 255, 2 / 255]
 CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
-
-
-def assert_matches_reference(gl, reference, min_psnr=45.0, depth_rtol=1e-3):
-    """Linear image PSNR ≥ 45 dB (peak: max(1, brightest reference value)) and depth within 1e-3
-    relative where the reference α > 0.5. Pixels where a contribution sits within 1e-5 of the τ
-    cut (a float32/float64 coin flip) are left out of the depth check; they must stay rare."""
-    ref, near_cut = reference
-    assert np.all(np.isfinite(gl.rgba)) and np.all(np.isfinite(gl.depth))
-    peak = max(float(ref.rgba.max()), 1.0)
-    assert psnr(gl.rgba, ref.rgba, peak) >= min_psnr
-    assert near_cut.mean() <= 0.005
-    covered = (ref.alpha > 0.5) & ~near_cut
-    assert covered.any()
-    rel = np.abs(gl.depth[covered] - ref.depth[covered]) / ref.depth[covered]
-    assert rel.max() <= depth_rtol
 
 
 @pytest.mark.parametrize("degree", [0, 1, 2, 3])
