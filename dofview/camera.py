@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DofviewError
+from .jsonfile import read_json
 
 
 @dataclass(frozen=True)
@@ -128,12 +129,7 @@ def load_cameras_json(path: str | Path) -> list[Camera]:
     """Read an Inria ``cameras.json``: a list of {id, img_name, width, height, position (camera
     centre, world), rotation (3×3 camera → world), fx, fy}."""
     path = Path(path)
-    try:
-        entries = json.loads(path.read_text())
-    except OSError as e:
-        raise DofviewError(f"{path}: cannot read cameras file ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise DofviewError(f"{path}: not a valid JSON cameras file ({e})") from None
+    entries = read_json(path, "cameras file")
     if not isinstance(entries, list) or not entries:
         raise DofviewError(f"{path}: expected a non-empty JSON list of cameras")
     cams = []

@@ -9,13 +9,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
+import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
 from . import __version__
 from .camera import Camera, framing_camera, load_cameras_json, look_at, select_camera
-from .errors import DofviewError
+from .errors import DofviewError, DofviewWarning
 from .frame import OPACITY_NORMS, RenderSettings
 from .lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
 from .scene import COLOUR_SPACES, GaussianScene
@@ -178,9 +180,10 @@ def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap
     eye = camera.centre
     target = eye + camera.forward * (lens.focus if math.isfinite(lens.focus) else 1.0)
     fov = camera.fov_x_deg
-    parts = ["dofview", "render", scene_path, "-o", out,
+    parts = ["dofview", "render", shlex.quote(scene_path), "-o", shlex.quote(out),
              "--width", str(camera.width), "--height", str(camera.height),
-             "--eye", ",".join(f"{v:.6g}" for v in eye), "--target", ",".join(f"{v:.6g}" for v in target),
+             # "--eye=…" form: argparse would take a value like "-1.5,0,2" for an option
+             "--eye=" + ",".join(f"{v:.6g}" for v in eye), "--target=" + ",".join(f"{v:.6g}" for v in target),
              "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}", "--aperture", f"{lens.aperture:.6g}",
              "--exposure", f"{math.log2(tm.exposure):.6g}", "--gamma", f"{tm.gamma:.6g}",
              "--tau", f"{settings.tau:.6g}", "--k", f"{settings.k:.6g}", "--opacity-norm", settings.opacity_norm,
@@ -243,6 +246,9 @@ def run_render(args: argparse.Namespace) -> int:
 
     if args.output.suffix.lower() != ".exr":
         raise DofviewError(f"{args.output}: output must be an .exr file")
+    for out in (args.output, args.png):  # before the render, not after it
+        if out is not None and not out.parent.is_dir():
+            raise DofviewError(f"{out}: folder {out.parent} does not exist")
     settings = settings_from_args(args)
     tm = tonemap_from_args(args)
     scene = load_scene_arg(args)
@@ -268,8 +274,15 @@ def run_render(args: argparse.Namespace) -> int:
 COMMAND_MODULES = ("dofview.viewer.app", "dofview.bench", "dofview.train.cli")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with dofview's one-line errors (sub-commands inherit it): exit status 2, no usage dump."""
+
+    def error(self, message: str):
+        self.exit(2, f"dofview: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dofview", description="A camera lens for trained 3D Gaussian Splatting scenes.")
+    parser = _Parser(prog="dofview", description="A camera lens for trained 3D Gaussian Splatting scenes.")
     parser.add_argument("--version", action="version", version=f"dofview {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_render(sub)
@@ -289,6 +302,21 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    with warnings.catch_warnings():
+        python_show = warnings.showwarning
+
+        def show(message, category, *rest, **kw) -> None:  # repaired input: one line, no source excerpt
+            if issubclass(category, DofviewWarning):
+                print(f"dofview: warning: {message}", file=sys.stderr)
+            else:
+                python_show(message, category, *rest, **kw)
+
+        warnings.simplefilter("always", DofviewWarning)
+        warnings.showwarning = show
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.run(args) or 0)
     except DofviewError as e:

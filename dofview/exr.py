@@ -40,8 +40,12 @@ def write_exr(path: str | Path, rgba: np.ndarray, depth: np.ndarray | None = Non
     for k, v in (header or {}).items():
         hdr[k] = v if isinstance(v, (str, int)) else float(v) if isinstance(v, float) else str(v)
     with atomic_output(path) as tmp:
-        with OpenEXR.File(hdr, channels) as f:
-            f.write(str(tmp))
+        try:
+            with OpenEXR.File(hdr, channels) as f:
+                f.write(str(tmp))
+        except RuntimeError as e:  # OpenEXR reports I/O failures (a full disk) as RuntimeError
+            reason = str(e).rsplit('". ', 1)[-1].rstrip(".")  # the OS's reason, after the temp file's name
+            raise DofviewError(f"{path}: cannot write EXR ({reason}); nothing was written") from None
 
 
 def read_exr(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, object]]:

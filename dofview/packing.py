@@ -6,6 +6,8 @@ Packed layout, per Gaussian (read by shaders/fetch_packed.glsl):
   the dropped one (2 bits), and opacity in 14 bits.
 - ``sh``: the SH-rest coefficients as halves, (K−1)·3 per Gaussian, tightly packed (absent at
   degree 0).
+Colours (base and SH rest) are stored divided by :func:`colour_scale`, so HDR radiance beyond the
+half range survives.
 The full layout (shaders/fetch_full.glsl) keeps everything float32, for measuring what packing
 costs in image error.
 """
@@ -35,13 +37,23 @@ def base_colour_offset(scene: GaussianScene) -> np.ndarray:
     return (SH_C0 * scene.sh_dc + 0.5).astype(np.float32)
 
 
-def pack_core(scene: GaussianScene) -> np.ndarray:
-    """(N, 8) uint32 packed core attributes (see module docstring)."""
+def colour_scale(scene: GaussianScene) -> float:
+    """The power of two the packed colour coefficients are divided by so that they fit in halves:
+    1 unless one exceeds 65504 (HDR radiance up to float32 range); the shader multiplies it back."""
+    peak = float(np.abs(base_colour_offset(scene)).max(initial=0.0))
+    if scene.sh_rest is not None and scene.count:
+        peak = max(peak, float(scene.sh_rest.max()), -float(scene.sh_rest.min()))  # no |x| temporary
+    return 1.0 if peak <= HALF_MAX else float(2.0 ** np.ceil(np.log2(peak / HALF_MAX)))
+
+
+def pack_core(scene: GaussianScene, scale: float | None = None) -> np.ndarray:
+    """(N, 8) uint32 packed core attributes (see module docstring); ``scale``: the colour scale when
+    packing part of a scene (default: this scene's :func:`colour_scale`)."""
     n = scene.count
     out = np.zeros((n, 8), np.uint32)
     out[:, :3] = scene.means.view(np.uint32)
     s = _half_bits(scene.scales)
-    c = _half_bits(base_colour_offset(scene))
+    c = _half_bits(base_colour_offset(scene) / np.float32(colour_scale(scene) if scale is None else scale))
     out[:, 3] = s[:, 0] | (s[:, 1] << 16)
     out[:, 4] = s[:, 2] | (c[:, 0] << 16)
     out[:, 5] = c[:, 1] | (c[:, 2] << 16)
@@ -58,11 +70,14 @@ def pack_core(scene: GaussianScene) -> np.ndarray:
     return out
 
 
-def pack_sh(scene: GaussianScene) -> np.ndarray | None:
+def pack_sh(scene: GaussianScene, scale: float | None = None) -> np.ndarray | None:
     """uint32 words holding the SH-rest coefficients as halves, or None at degree 0."""
     if scene.sh_rest is None:
         return None
-    h = np.clip(scene.sh_rest, -HALF_MAX, HALF_MAX).astype(np.float16).ravel()
+    h = np.empty(scene.sh_rest.size, np.float16)  # clipped straight into halves: no float32 temporary
+    scale = colour_scale(scene) if scale is None else scale
+    rest = scene.sh_rest.ravel() if scale == 1.0 else scene.sh_rest.ravel() / np.float32(scale)
+    np.clip(rest, -HALF_MAX, HALF_MAX, out=h, casting="unsafe")
     if h.size % 2:
         h = np.append(h, np.float16(0))
     return h.view(np.uint32)
@@ -79,9 +94,10 @@ def full_core(scene: GaussianScene) -> np.ndarray:
     return out
 
 
-def gpu_arrays(scene: GaussianScene, packed: bool = True) -> dict[int, np.ndarray]:
-    """The storage buffers a scene needs, by shader binding (0 core, 2 SH rest)."""
-    bufs = {0: pack_core(scene) if packed else full_core(scene)}
+def gpu_arrays(scene: GaussianScene, packed: bool = True, scale: float | None = None) -> dict[int, np.ndarray]:
+    """The storage buffers a scene needs, by shader binding (0 core, 2 SH rest); ``scale`` as in
+    :func:`pack_core`."""
+    bufs = {0: pack_core(scene, scale) if packed else full_core(scene)}
     if scene.sh_rest is not None:
-        bufs[2] = pack_sh(scene) if packed else scene.sh_rest.reshape(scene.count, -1)
+        bufs[2] = pack_sh(scene, scale) if packed else scene.sh_rest.reshape(scene.count, -1)
     return bufs

@@ -11,7 +11,7 @@ a header comment ``dofview colour_space linear|srgb``; files without it are stan
 
 from __future__ import annotations
 
-import os
+import mmap
 import re
 import warnings
 from pathlib import Path
@@ -21,6 +21,7 @@ import numpy as np
 
 from .errors import DofviewError, DofviewWarning
 from .scene import COLOUR_SPACES, GaussianScene
+from .scenefile import input_size
 
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
@@ -32,6 +33,7 @@ REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
 REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}  # f_rest values → SH degree
 MAX_HEADER = 1 << 20
 _COLOUR_COMMENT = re.compile(r"^dofview colour_space (\w+)$")
+_DROP_PAGES = hasattr(mmap, "MADV_DONTNEED")  # POSIX; Windows' mmap has no madvise
 CHUNK = 1 << 18  # Gaussians activated per step (bounds temporaries, drives the progress bar)
 
 
@@ -39,6 +41,11 @@ class _Element:
     def __init__(self, name: str, count: int) -> None:
         self.name, self.count = name, count
         self.props: list[tuple[str, str | None]] = []  # (name, numpy type or None for a list)
+        self.min_binary_row = 0  # bytes: scalars plus list counts (lists may be empty)
+
+    def min_body_bytes(self, fmt: str) -> int:
+        """The fewest body bytes ``count`` rows can take: an ASCII value needs a digit and a separator."""
+        return self.count * max(2 * len(self.props) if fmt == "ascii" else self.min_binary_row, 1)
 
 
 def _parse_header(path: Path, head: bytes) -> tuple[str, list[_Element], list[str], int]:
@@ -74,10 +81,14 @@ def _parse_header(path: Path, head: bytes) -> tuple[str, list[_Element], list[st
         elif kw == "property":
             if not elements:
                 raise DofviewError(f"{path}: property before any element in PLY header line {lineno}")
+            if words[-1] in (name for name, _ in elements[-1].props):
+                raise DofviewError(f"{path}: property {words[-1]!r} appears twice in PLY header line {lineno}")
             if len(words) == 3 and words[1] in PLY_TYPES:
                 elements[-1].props.append((words[2], PLY_TYPES[words[1]]))
+                elements[-1].min_binary_row += np.dtype(PLY_TYPES[words[1]]).itemsize
             elif len(words) == 5 and words[1] == "list" and words[2] in PLY_TYPES and words[3] in PLY_TYPES:
                 elements[-1].props.append((words[4], None))
+                elements[-1].min_binary_row += np.dtype(PLY_TYPES[words[2]]).itemsize
             else:
                 raise DofviewError(f"{path}: bad property line {lineno} in PLY header: {line.strip()!r}")
         else:
@@ -109,8 +120,18 @@ def _check_vertex(path: Path, elements: list[_Element]) -> _Element:
     return vertex
 
 
-def _binary_columns(path: Path, fmt: str, elements: list[_Element], vertex: _Element, header_len: int,
-                    size: int) -> np.ndarray | None:
+def _check_body_size(path: Path, fmt: str, elements: list[_Element], vertex: _Element, body: int) -> None:
+    """Refuse a body too short for the header's counts before anything is allocated (exact for
+    binary files without lists, a lower bound otherwise)."""
+    need = sum(e.min_body_bytes(fmt) for e in elements) - (fmt == "ascii")  # last newline optional
+    if need > body:
+        raise DofviewError(
+            f"{path}: file is cut short: the header announces {vertex.count} Gaussians "
+            f"(at least {need} bytes) but only {body} bytes follow it")
+
+
+def _binary_columns(path: Path, fmt: str, elements: list[_Element], vertex: _Element,
+                    header_len: int) -> np.ndarray | None:
     """The vertex rows as a read-only structured memmap, or None when the layout needs plyfile."""
     order = "<" if fmt == "binary_little_endian" else ">"
     offset = header_len
@@ -119,11 +140,6 @@ def _binary_columns(path: Path, fmt: str, elements: list[_Element], vertex: _Ele
             return None  # list properties before/in the vertex element: sizes are per row
         dtype = np.dtype([(n, order + t) for n, t in e.props])
         if e is vertex:
-            need = dtype.itemsize * e.count
-            if offset + need > size:
-                raise DofviewError(
-                    f"{path}: file is cut short: the header announces {e.count} Gaussians "
-                    f"({need} bytes) but only {max(size - offset, 0)} bytes follow it")
             if e.count == 0:
                 return np.zeros(0, dtype)
             return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=(e.count,))
@@ -153,23 +169,18 @@ def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = Non
         DofviewError: the file is missing, unreadable, not a 3DGS PLY, or cut short.
     """
     path = Path(path)
+    size = input_size(path)
     try:
-        size = os.stat(path).st_size
         with open(path, "rb") as f:
             head = f.read(MAX_HEADER)
-    except IsADirectoryError:
-        raise DofviewError(f"{path}: is a directory, not a .ply file") from None
-    except FileNotFoundError:
-        raise DofviewError(f"{path}: no such file") from None
     except OSError as e:
         raise DofviewError(f"{path}: cannot read ({e.strerror or e})") from None
-    if size == 0:
-        raise DofviewError(f"{path}: file is empty")
     fmt, elements, comments, header_len = _parse_header(path, head)
     vertex = _check_vertex(path, elements)
+    _check_body_size(path, fmt, elements, vertex, size - header_len)
     rows = None
     if fmt != "ascii":
-        rows = _binary_columns(path, fmt, elements, vertex, header_len, size)
+        rows = _binary_columns(path, fmt, elements, vertex, header_len)
     if rows is None:
         rows = _plyfile_rows(path)
     colour_space = "srgb"
@@ -213,6 +224,8 @@ def _activate(path: Path, rows: np.ndarray, colour_space: str,
         if rest is not None:
             ok &= np.isfinite(rest[s:e]).all((1, 2))
         finite[s:e] = ok
+        if _DROP_PAGES and isinstance(rows.base, mmap.mmap):  # drop the pages read from our resident
+            rows.base.madvise(mmap.MADV_DONTNEED)  # set (issue 7: load peak ≤ 2× file); page cache keeps them
         if progress:
             progress(e, n)
     # exp stays finite and normal in float32 inside ±87

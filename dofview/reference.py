@@ -77,7 +77,7 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     tau = settings.tau
     ok = np.isfinite(det) & (det > 0) & (o > 0) & (np.minimum(o, ALPHA_MAX) >= tau)
     with np.errstate(divide="ignore", invalid="ignore"):
-        r2 = 2.0 * np.log(o / tau) if tau > 0 else np.full_like(o, 9.0)
+        r2 = np.minimum(2.0 * np.log(o / tau), 9.0) if tau > 0 else np.full_like(o, 9.0)  # ≤ 3σ, as splat.vert
     mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)
     sel = np.nonzero(ok)[0]
     return {
@@ -123,9 +123,11 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
             q = cn[:, 0] * dx * dx + 2 * cn[:, 1] * dx * dy + cn[:, 2] * dy * dy
             alpha = np.minimum(ALPHA_MAX, pr["opacity"][hit][None] * np.exp(-0.5 * q))
             if margins:
-                edge = np.abs(alpha - tau) <= 1e-5 * tau if tau > 0 else np.abs(q - 9.0) <= 9e-5
+                edge = np.abs(q - 9.0) <= 9e-5
+                if tau > 0:
+                    edge |= np.abs(alpha - tau) <= 1e-5 * tau
                 near_cut[y0:y1, x0:x1] = edge.any(axis=1).reshape(y1 - y0, x1 - x0)
-            alpha = np.where((alpha >= tau) & ((tau > 0) | (q <= 9.0)), alpha, 0.0)
+            alpha = np.where((alpha >= tau) & (q <= 9.0), alpha, 0.0)
             trans = np.cumprod(1.0 - alpha, axis=1)
             weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
             rgb = weight @ colour[hit]

@@ -17,10 +17,13 @@ from .camera import Camera
 from .frame import OPACITY_NORMS, Frame, RenderSettings, depth_from_weighted
 from .gl import check_size, headless_context, load_shader
 from .lens import Lens
-from .packing import gpu_arrays
+from .packing import colour_scale, gpu_arrays
 from .scene import GaussianScene
 from .sort import front_to_back
 from .tonemap import Tonemap, decode
+
+
+UPLOAD_CHUNK = 1 << 16  # Gaussians packed and uploaded per step; even, so packed SH halves stay word-aligned
 
 
 @dataclass
@@ -30,6 +33,12 @@ class DrawStats:
     drawn: int = 0
     total: int = 0
     sort_ms: float = 0.0
+
+
+def _float32(x: float) -> float:
+    """Clamp to float32 range: a uniform of 1/d_f for a focus below 1e-38 would be inf, and 0·inf
+    a NaN circle of confusion even with a pinhole."""
+    return min(x, float(np.finfo(np.float32).max))
 
 
 class Renderer:
@@ -49,13 +58,14 @@ class Renderer:
         self.stats = DrawStats(total=scene.count)
         n = max(scene.count, 1)  # GL refuses zero-sized buffers; an empty scene draws 0 instances
         self.packed = packed
-        arrays = gpu_arrays(scene, packed) if scene.count else {0: np.zeros(16, np.uint32)}
-        self._buffers = {b: self.ctx.buffer(np.ascontiguousarray(a).tobytes()) for b, a in arrays.items()}
+        scale = colour_scale(scene) if packed else 1.0
+        self._buffers = self._upload(scene, packed, scale)
         degree = scene.sh_degree
         self._order = self.ctx.buffer(reserve=4 * n)
         self._counter = self.ctx.buffer(reserve=4)
         defines = {"SH_DEGREE": degree, "SH_REST": (degree + 1) ** 2 - 1,
-                   "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl"}
+                   "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl",
+                   "COLOUR_SCALE": repr(scale)}
         self.program = self.ctx.program(
             vertex_shader=load_shader("splat.vert", defines), fragment_shader=load_shader("splat.frag"))
         self._vao = self.ctx.vertex_array(self.program, [])
@@ -68,6 +78,23 @@ class Renderer:
         self.lens: Lens | None = None
 
     # ---- buffers ---------------------------------------------------------------------------
+    def _upload(self, scene: GaussianScene, packed: bool, scale: float) -> dict[int, moderngl.Buffer]:
+        """The scene's storage buffers by binding, packed and written UPLOAD_CHUNK Gaussians at a time:
+        host memory holds one chunk's packed copy, not the whole scene's (issue 7: a load peaks at
+        ≤ 2× the file size). Arrays go in through the buffer protocol, without a bytes copy."""
+        if not scene.count:
+            return {0: self.ctx.buffer(np.zeros(16, np.uint32))}
+        buffers: dict[int, moderngl.Buffer] = {}
+        per_gaussian: dict[int, int] = {}
+        for start in range(0, scene.count, UPLOAD_CHUNK):
+            part = scene.subset(slice(start, start + UPLOAD_CHUNK))
+            for b, a in gpu_arrays(part, packed, scale).items():
+                if b not in buffers:  # the first chunk gives the bytes per Gaussian (a pad half aside)
+                    per_gaussian[b] = a.nbytes // part.count
+                    buffers[b] = self.ctx.buffer(reserve=-(-per_gaussian[b] * scene.count // 4) * 4)
+                buffers[b].write(np.ascontiguousarray(a), offset=start * per_gaussian[b])
+        return buffers
+
     @property
     def gpu_bytes(self) -> int:
         """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer)."""
@@ -111,10 +138,12 @@ class Renderer:
 
     # ---- drawing ---------------------------------------------------------------------------
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
-             count: bool = False) -> None:
-        """Splat the scene into the float targets (no read-back). Sorts only if the view moved."""
+             count: bool = False, sort: bool = True) -> None:
+        """Splat the scene into the float targets (no read-back). Sorts only if the view moved;
+        ``sort=False`` keeps the current order (the viewer sorts off its UI thread meanwhile)."""
         self._targets(camera.width, camera.height)
-        self.sort(camera)
+        if sort:
+            self.sort(camera)
         self.camera, self.lens = camera, lens
         p = self.program
         for i, name in enumerate(("u_R0", "u_R1", "u_R2")):
@@ -128,7 +157,7 @@ class Renderer:
         p["u_near"].value = settings.near
         p["u_tau"].value = settings.tau
         p["u_aperture"].value = lens.aperture
-        p["u_inv_focus"].value = lens.inv_focus
+        p["u_inv_focus"].value = _float32(lens.inv_focus)
         p["u_k"].value = settings.k
         p["u_opacity_norm"].value = OPACITY_NORMS.index(settings.opacity_norm)
         p["u_blend_linear"].value = settings.blend_linear
@@ -163,6 +192,24 @@ class Renderer:
             rgba[..., :3] = decode(rgba[..., :3])
         return Frame(rgba=rgba, depth=depth_from_weighted(depth[..., 0], depth[..., 3]), encoded=self._encoded)
 
+    def focus_depth_at(self, x: float, y: float) -> float | None:
+        """Click-to-focus depth (scene units) at pixel (x, y) of the last draw (top-left origin).
+
+        The inverse of the α-weighted mean of 1/z: the CoC is linear in 1/z, so this is the focus
+        that makes the pixel's contributions sharpest in the least-squares sense, and a far
+        background seen through gaps barely pulls it (the mean depth is pulled by its full distance).
+        Median over focus.depth_at's window of well-covered pixels; None over empty space.
+        """
+        from .focus import depth_at
+
+        w, h = self._size
+        d = np.frombuffer(self.depth_tex.read(), np.float32).reshape(h, w, 4)[::-1]
+        inv = depth_from_weighted(d[..., 1], d[..., 3])
+        rgba = np.zeros((h, w, 4), np.float32)
+        rgba[..., 3] = d[..., 3]
+        depth = np.where(inv > 0, 1.0 / np.maximum(inv, 1e-30), 0.0).astype(np.float32)
+        return depth_at(Frame(rgba=rgba, depth=depth, encoded=False), x, y)
+
     def render(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings()) -> Frame:
         """Draw and read back: the one-call API for the CLI, benchmarks and tests."""
         self.draw(camera, lens, settings)
@@ -183,7 +230,7 @@ class Renderer:
         p["u_gamma"].value = float(tm.gamma)
         p["u_focus_aid"].value = focus_aid
         p["u_aperture"].value = self.lens.aperture if self.lens else 0.0
-        p["u_inv_focus"].value = self.lens.inv_focus if self.lens else 0.0
+        p["u_inv_focus"].value = _float32(self.lens.inv_focus) if self.lens else 0.0
         target.use()
         self.ctx.viewport = viewport
         self._tonemap_vao.render(moderngl.TRIANGLES, vertices=3)

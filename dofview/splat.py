@@ -7,7 +7,6 @@ only (view-dependent colour is not stored) and no colour-space metadata: files a
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Callable
 
@@ -16,6 +15,7 @@ import numpy as np
 from .atomic import atomic_output
 from .errors import DofviewError
 from .scene import SH_C0, GaussianScene
+from .scenefile import input_size
 
 SPLAT_DTYPE = np.dtype([("position", "<f4", 3), ("scale", "<f4", 3), ("rgba", "u1", 4), ("rot", "u1", 4)])
 
@@ -23,14 +23,7 @@ SPLAT_DTYPE = np.dtype([("position", "<f4", 3), ("scale", "<f4", 3), ("rgba", "u
 def read_splat(path: str | Path, progress: Callable[[int, int], None] | None = None) -> GaussianScene:
     """Read a ``.splat`` file into a degree-0 sRGB :class:`GaussianScene`."""
     path = Path(path)
-    try:
-        size = os.stat(path).st_size
-    except FileNotFoundError:
-        raise DofviewError(f"{path}: no such file") from None
-    except OSError as e:
-        raise DofviewError(f"{path}: cannot read ({e.strerror or e})") from None
-    if size == 0:
-        raise DofviewError(f"{path}: file is empty")
+    size = input_size(path)
     if size % SPLAT_DTYPE.itemsize:
         raise DofviewError(f"{path}: size {size} bytes is not a whole number of 32-byte Gaussians "
                            "(cut short, or not a .splat file)")

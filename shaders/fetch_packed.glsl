@@ -1,4 +1,5 @@
 // Per-Gaussian attributes from the packed layout (dofview/packing.py): 32 B core + half SH.
+// Colour coefficients are stored divided by COLOUR_SCALE (a power of two, #defined by the loader).
 layout(std430, binding = 0) readonly buffer Core { uint core[]; };
 #if SH_DEGREE > 0
 layout(std430, binding = 2) readonly buffer ShRest { uint sh_words[]; };
@@ -15,7 +16,7 @@ vec3 load_scale(uint g) {
 }
 
 vec3 load_base(uint g) {
-    return vec3(unpackHalf2x16(core[g * 8u + 4u]).y, unpackHalf2x16(core[g * 8u + 5u]));
+    return vec3(unpackHalf2x16(core[g * 8u + 4u]).y, unpackHalf2x16(core[g * 8u + 5u])) * COLOUR_SCALE;
 }
 
 float load_opacity(uint g) {
@@ -45,6 +46,6 @@ vec3 sh_coeff(uint g, int j) {
         vec2 pair = unpackHalf2x16(sh_words[k >> 1u]);
         c[i] = (k & 1u) == 0u ? pair.x : pair.y;
     }
-    return vec3(c[0], c[1], c[2]);
+    return vec3(c[0], c[1], c[2]) * COLOUR_SCALE;
 }
 #endif

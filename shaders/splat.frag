@@ -1,6 +1,7 @@
 #version 430
 // Per-pixel Gaussian alpha with the minimum-alpha cut tau, premultiplied for back-to-front
-// blending (ONE, ONE_MINUS_SRC_ALPHA); the second target accumulates alpha-weighted depth.
+// blending (ONE, ONE_MINUS_SRC_ALPHA); the second target accumulates alpha-weighted depth (r) and
+// alpha-weighted inverse depth (g, for click-to-focus: see Renderer.focus_depth_at).
 
 flat in vec2 v_centre;
 flat in vec2 v_axis1;
@@ -18,9 +19,9 @@ void main() {
     vec2 d = gl_FragCoord.xy - v_centre;
     vec2 u = vec2(dot(d, v_axis1), dot(d, v_axis2));  // offset in std-devs along the axes
     float q = dot(u, u);  // d^T Sigma^-1 d
-    if (u_tau == 0.0 && q > 9.0) discard;
+    if (q > 9.0) discard;  // 3 sigma, whatever tau (see splat.vert)
     float alpha = min(0.99, v_opacity * exp(-0.5 * q));
     if (alpha < u_tau || !(alpha > 0.0)) discard;
     out_colour = vec4(v_colour * alpha, alpha);
-    out_depth = vec4(v_depth * alpha, 0.0, 0.0, alpha);
+    out_depth = vec4(v_depth * alpha, alpha / v_depth, 0.0, alpha);
 }

@@ -105,8 +105,9 @@ void main() {
     }
     if (!(o > 0.0) || min(o, 0.99) < u_tau) { cull(); return; }
 
-    // Support: alpha >= tau inside q <= 2 ln(o/tau); 3 sigma when tau = 0.
-    float r2 = u_tau > 0.0 ? 2.0 * log(o / u_tau) : 9.0;
+    // Support: alpha >= tau inside q <= 2 ln(o/tau), and never beyond 3 sigma (q <= 9, the τ = 0
+    // cut): for o > 90 tau the alpha bound alone would draw quads larger than with tau = 0.
+    float r2 = u_tau > 0.0 ? min(9.0, 2.0 * log(o / u_tau)) : 9.0;
     vec2 p = u_focal * t.xy * iz + u_principal;
     vec2 ext = sqrt(r2 * vec2(sxx, syy));  // the ellipse's axis-aligned half extent
     if (p.x + ext.x < 0.0 || p.x - ext.x > u_viewport.x || p.y + ext.y < 0.0 || p.y - ext.y > u_viewport.y) {

@@ -1,0 +1,150 @@
+"""``dofview train``, ``dofview make-dataset`` and ``dofview train-eval``.
+
+This module imports without torch, so the commands always show in ``dofview --help``; running
+``dofview train`` without torch installed is a one-line error naming the fix.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ..cli import _number, _vec3, load_scene_arg
+from ..errors import DofviewError
+
+NO_TORCH = "dofview train needs torch: pip install 'dofview[train]' (a CPU build is enough)"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("train", help="fit an HDR Gaussian scene with depth of field to 8-bit photos (needs torch)",
+                       description="Fit an all-in-focus HDR Gaussian scene to photos taken with varying exposure "
+                                   "time, f-number and focus (Cinematic Gaussians); see docs/TRAINING.md.")
+    p.add_argument("dataset", type=Path, help="dataset folder with transforms.json")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output .ply (linear HDR; sRGB for --variant ldr)")
+    p.add_argument("--iterations", type=_number(1, None, integer=True, what="iterations"), default=2000)
+    p.add_argument("--warmup", type=_number(0, None, integer=True, what="warm-up"), default=500,
+                   help="exposure-aligned pinhole steps before tonemapping and depth of field (default 500)")
+    p.add_argument("--gaussians", type=_number(1, None, integer=True, what="initial Gaussians"), default=300,
+                   help="initial random Gaussians (default 300)")
+    p.add_argument("--max-gaussians", type=_number(1, None, integer=True, what="max Gaussians"), default=1500)
+    p.add_argument("--variant", choices=("full", "no-exp", "no-foc", "ldr"), default="full",
+                   help="full model, ablations without L_exp / L_foc, or a plain LDR fit (default full)")
+    p.add_argument("--seed", type=_number(0, None, integer=True, what="seed"), default=0)
+    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    p.add_argument("--checkpoint", type=Path, help="checkpoint file (default OUTPUT.ckpt)")
+    p.add_argument("--checkpoint-every", type=_number(0, None, integer=True, what="checkpoint interval"), default=500,
+                   help="steps between checkpoints, 0 = none (default 500)")
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
+    p.add_argument("--log", type=Path, help="write the loss / Gaussian-count history as JSON")
+    p.add_argument("--plot", type=Path, help="plot the loss and Gaussian count over time as PNG")
+    p.set_defaults(run=run_train)
+
+    p = sub.add_parser("make-dataset", help="render a training dataset (photos + transforms.json) from a scene",
+                       description="Render random-exposure, random-aperture, random-focus 8-bit photos of a scene "
+                                   "with dofview's renderer, plus held-out all-in-focus HDR views.")
+    p.add_argument("scene", type=Path, help="scene (.ply or .splat)")
+    p.add_argument("--colour-space", "--color-space", choices=("srgb", "linear"), help="override the scene's colour space")
+    p.add_argument("-o", "--output", type=Path, required=True, help="new dataset folder")
+    p.add_argument("--views", type=_number(1, None, integer=True, what="views"), default=30)
+    p.add_argument("--held-out", type=_number(0, None, integer=True, what="held-out views"), default=8)
+    p.add_argument("--width", type=_number(8, None, integer=True, what="width"), default=64)
+    p.add_argument("--height", type=_number(8, None, integer=True, what="height"), default=48)
+    p.add_argument("--focal-mm", type=_number(0, None, lo_open=True, what="focal length"), default=50.0)
+    p.add_argument("--sensor-mm", type=_number(0, None, lo_open=True, what="sensor width"), default=36.0)
+    p.add_argument("--units-per-metre", type=_number(0, None, lo_open=True, what="units per metre"), default=10.0)
+    p.add_argument("--ev-min", type=float, default=-10.0, help="lowest exposure, stops from mid-grey key (default -10)")
+    p.add_argument("--ev-max", type=float, default=2.0, help="highest exposure, stops from the key (default 2)")
+    p.add_argument("--orbit", type=_number(0, 90, hi_open=False, what="orbit"), default=15.0,
+                   help="cameras swing up to this many degrees of yaw (half of it in pitch) about the target")
+    p.add_argument("--eye", type=_vec3, help="base camera position x,y,z (default: a framing camera)")
+    p.add_argument("--target", type=_vec3, help="point the cameras look at x,y,z")
+    p.add_argument("--seed", type=_number(0, None, integer=True, what="seed"), default=0)
+    p.set_defaults(run=run_make_dataset)
+
+    p = sub.add_parser("train-eval", help="score trained scenes on a dataset's held-out HDR views",
+                       description="Log-radiance PSNR and bright-light radiance ratio of each scene on the "
+                                   "dataset's held-out all-in-focus HDR views; prints a Markdown table.")
+    p.add_argument("dataset", type=Path)
+    p.add_argument("scenes", type=Path, nargs="+")
+    p.add_argument("--json", type=Path, help="also write the scores as JSON")
+    p.set_defaults(run=run_eval)
+
+
+def _torch() -> None:
+    try:
+        import torch  # noqa: F401
+    except ModuleNotFoundError:
+        raise DofviewError(NO_TORCH) from None
+
+
+def run_train(args: argparse.Namespace) -> int:
+    _torch()
+    from ..atomic import atomic_output
+    from ..ply import write_ply
+    from .dataset import load_dataset
+    from .optimise import TrainConfig, Trainer
+
+    if args.output.suffix.lower() != ".ply":
+        raise DofviewError(f"{args.output}: output must be a .ply file")
+    dataset = load_dataset(args.dataset)
+    config = TrainConfig(iterations=args.iterations, warmup=min(args.warmup, args.iterations), initial=args.gaussians,
+                         max_gaussians=args.max_gaussians, variant=args.variant, seed=args.seed)
+    trainer = Trainer(dataset, config, args.device)
+    ckpt = args.checkpoint or args.output.with_suffix(".ckpt")
+    if args.resume:
+        if not ckpt.is_file():
+            raise DofviewError(f"{ckpt}: no checkpoint to resume from")
+        trainer.load_checkpoint(ckpt)
+    trainer.run(progress=True, checkpoint=ckpt, checkpoint_every=args.checkpoint_every)
+    linear = args.variant != "ldr"
+    write_ply(trainer.model.to_scene("linear" if linear else "srgb", args.output.stem), args.output)
+    if args.log:
+        with atomic_output(args.log) as tmp:
+            tmp.write_text(json.dumps({"dataset": str(args.dataset), "variant": args.variant,
+                                       "history": trainer.history.rows}, indent=1))
+    rows = trainer.history.rows
+    if args.plot:
+        from .plot import plot_history
+
+        plot_history(rows, args.plot, f"dofview train {args.dataset.name} ({args.variant})")
+    counts = " → ".join(str(r["gaussians"]) for r in rows[:: max(len(rows) // 6, 1)])
+    print(f"{args.output}: {trainer.model.count} Gaussians ({'linear HDR' if linear else 'sRGB'}) after "
+          f"{trainer.step} steps on {trainer.device}; count over time {counts}", file=sys.stderr)
+    return 0
+
+
+def run_make_dataset(args: argparse.Namespace) -> int:
+    from .generate import Capture, generate
+
+    capture = Capture(views=args.views, held_out=args.held_out, width=args.width, height=args.height,
+                      focal_mm=args.focal_mm, sensor_mm=args.sensor_mm, units_per_metre=args.units_per_metre,
+                      ev_range=(args.ev_min, args.ev_max), orbit_deg=args.orbit, seed=args.seed)
+    scene = load_scene_arg(args)
+    path = generate(scene, args.output, capture, args.eye, args.target)
+    print(f"{path}: {args.views} photos, {args.held_out} held-out HDR views", file=sys.stderr)
+    return 0
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    from ..scenefile import load_scene
+    from ..atomic import atomic_output
+    from .dataset import load_dataset
+    from .evaluate import evaluate
+
+    dataset = load_dataset(args.dataset)
+    rows = []
+    print("| scene | colour space | log-radiance PSNR (dB) | bright-region radiance ratio |")
+    print("|---|---|---|---|")
+    for path in args.scenes:
+        scene = load_scene(path, progress=False)
+        ev = evaluate(scene, dataset)
+        rows.append({"scene": str(path), "colour_space": scene.colour_space, "log_psnr": ev.log_psnr,
+                     "mean_log_psnr": ev.mean_log_psnr, "bright_ratio": ev.bright_ratio,
+                     "mean_bright_ratio": ev.mean_bright_ratio})
+        print(f"| {path.name} | {scene.colour_space} | {ev.mean_log_psnr:.2f} | {ev.mean_bright_ratio:.3f} |")
+    if args.json:
+        with atomic_output(args.json) as tmp:
+            tmp.write_text(json.dumps(rows, indent=1))
+    return 0

@@ -1,0 +1,200 @@
+"""Training datasets: a folder of 8-bit photos plus ``transforms.json`` (format in docs/TRAINING.md).
+
+Each training frame needs a camera (intrinsics and a camera-to-world matrix) and its capture
+settings: exposure time t (s), f-number N, focus distance d_f (scene units) and focal length
+(mm). A setting missing from the frame is taken from the file's top level, then from the image's
+EXIF (ExposureTime, FNumber, FocalLength, SubjectDistance in metres); an image whose settings stay
+unknown is named in the error. Held-out frames (``"split": "test"``) carry an all-in-focus linear
+HDR EXR (``hdr_path``) for evaluation instead of a photo.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera
+from ..errors import DofviewError
+from ..lens import Lens, PhysicalLens, exposure_from_shutter
+from .exif import read_exif
+
+SETTINGS = ("exposure_time", "f_number", "focus_distance", "focal_length_mm")
+
+
+@dataclass(frozen=True)
+class Shot:
+    """One training photo and how it was taken.
+
+    Attributes:
+        camera: pinhole camera (OpenCV convention) of the photo.
+        path: the 8-bit image file.
+        exposure_time: t in seconds. f_number: N. focus: d_f, camera z-depth in scene units.
+        focal_mm: focal length in mm.
+    """
+
+    camera: Camera
+    path: Path
+    exposure_time: float
+    f_number: float
+    focus: float
+    focal_mm: float
+
+    @property
+    def exposure(self) -> float:
+        """Linear exposure multiplier t/N² (Eq. 7)."""
+        return exposure_from_shutter(self.exposure_time, self.f_number)
+
+    def lens(self, sensor_mm: float, units_per_metre: float) -> Lens:
+        """The thin lens of this photo (Eq. 3) with the camera's own f_x."""
+        return PhysicalLens(self.focal_mm, self.f_number, sensor_mm, units_per_metre).lens(self.camera.fx, self.focus)
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """A held-out view: camera and its all-in-focus linear HDR render (EXR with R, G, B, A)."""
+
+    camera: Camera
+    hdr_path: Path
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A loaded ``transforms.json``.
+
+    Attributes:
+        root: the dataset folder. shots: training photos. held_out: evaluation views.
+        sensor_mm: sensor width in mm. units_per_metre: scene units per metre.
+        gamma: the photos' transfer gamma γ of Eq. 7.
+        depth_range: (near, far) camera depths in scene units where the scene lies, or None.
+    """
+
+    root: Path
+    shots: tuple[Shot, ...]
+    held_out: tuple[HeldOut, ...]
+    sensor_mm: float
+    units_per_metre: float
+    gamma: float
+    depth_range: tuple[float, float] | None
+
+    def lenses(self) -> list[Lens]:
+        return [s.lens(self.sensor_mm, self.units_per_metre) for s in self.shots]
+
+    def key_exposure(self) -> float:
+        """Geometric mean of the training exposures t/N²."""
+        return float(np.exp(np.mean([math.log(s.exposure) for s in self.shots])))
+
+    def scene_depths(self) -> tuple[float, float]:
+        """(near, far) scene depths: ``depth_range``, else ½× the nearest and 2× the farthest focus."""
+        if self.depth_range is not None:
+            return self.depth_range
+        focus = [s.focus for s in self.shots if math.isfinite(s.focus)]
+        return (0.5 * min(focus), 2.0 * max(focus)) if focus else (0.1, 100.0)
+
+
+def _camera(path: Path, where: str, top: dict, frame: dict) -> Camera:
+    get = lambda k: frame.get(k, top.get(k))  # noqa: E731 - per-frame value, else the file's default
+    try:
+        w, h = int(get("w")), int(get("h"))
+        fx = float(get("fl_x"))
+        fy = float(get("fl_y") if get("fl_y") is not None else fx)
+        cx = float(get("cx") if get("cx") is not None else w / 2)
+        cy = float(get("cy") if get("cy") is not None else h / 2)
+        c2w = np.asarray(frame["transform_matrix"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError) as e:
+        raise DofviewError(f"{path}: {where}: missing or malformed camera field ({e!r})") from None
+    if c2w.shape not in ((4, 4), (3, 4)) or not np.all(np.isfinite(c2w)) or not (w > 0 and h > 0 and fx > 0 and fy > 0):
+        raise DofviewError(f"{path}: {where}: camera must have w, h, fl_x > 0 and a finite 4×4 transform_matrix")
+    rot, centre = c2w[:3, :3].copy(), c2w[:3, 3]
+    if top.get("camera_convention", "opencv") == "opengl":  # y up, z backward → OpenCV y down, z forward
+        rot[:, 1:3] *= -1
+    R = rot.T
+    return Camera(w, h, fx, fy, cx, cy, R, -R @ centre, name=str(frame.get("file_path", frame.get("hdr_path", where))))
+
+
+def load_dataset(path: str | Path) -> Dataset:
+    """Read a dataset folder (or its transforms.json) and every training photo's settings."""
+    path = Path(path)
+    file = path / "transforms.json" if path.is_dir() else path
+    try:
+        top = json.loads(file.read_text())
+    except OSError as e:
+        raise DofviewError(f"{file}: cannot read dataset ({e.strerror or e})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DofviewError(f"{file}: not valid JSON ({e})") from None
+    if not isinstance(top, dict) or not isinstance(top.get("frames"), list):
+        raise DofviewError(f"{file}: expected an object with a 'frames' list")
+    root = file.parent
+    try:
+        sensor = float(top.get("sensor_mm", 36.0))
+        upm = float(top.get("units_per_metre", 1.0))
+        gamma = float(top.get("gamma", 2.2))
+        depth_range = tuple(float(v) for v in top["depth_range"]) if "depth_range" in top else None
+    except (TypeError, ValueError) as e:
+        raise DofviewError(f"{file}: malformed sensor_mm/units_per_metre/gamma/depth_range ({e})") from None
+    if not all(math.isfinite(v) and v > 0 for v in (sensor, upm, gamma)):
+        raise DofviewError(f"{file}: sensor_mm, units_per_metre and gamma must be finite and > 0")
+    shots, held, unknown = [], [], []
+    for i, frame in enumerate(top["frames"]):
+        if not isinstance(frame, dict):
+            raise DofviewError(f"{file}: frame {i} is not an object")
+        where = f"frame {i}"
+        camera = _camera(file, where, top, frame)
+        if frame.get("split", "train") == "test":
+            if "hdr_path" not in frame:
+                raise DofviewError(f"{file}: held-out {where} has no hdr_path")
+            held.append(HeldOut(camera, root / frame["hdr_path"]))
+            continue
+        if "file_path" not in frame:
+            raise DofviewError(f"{file}: {where} has no file_path")
+        image = root / frame["file_path"]
+        if not image.is_file():
+            raise DofviewError(f"{file}: {where}: image {image} does not exist")
+        values = {k: frame.get(k, top.get(k)) for k in SETTINGS}
+        if any(v is None for v in values.values()):
+            exif = read_exif(image)
+            if "subject_distance_m" in exif:
+                exif["focus_distance"] = exif["subject_distance_m"] * upm
+            values = {k: exif.get(k) if v is None else v for k, v in values.items()}
+        missing = [k for k, v in values.items() if v is None]
+        if missing:
+            unknown.append(f"{frame['file_path']} ({', '.join(missing)})")
+            continue
+        try:
+            t, n, d, f = (float(values[k]) for k in SETTINGS)
+        except (TypeError, ValueError):
+            raise DofviewError(f"{file}: {image}: capture settings must be numbers, got {values}") from None
+        if not (t > 0 and n > 0 and d > 0 and f > 0) or not all(map(math.isfinite, (t, n, f))):
+            raise DofviewError(f"{file}: {image}: exposure time, f-number, focus and focal length must be > 0")
+        shots.append(Shot(camera, image, t, n, d, f))
+    if unknown:
+        raise DofviewError(f"{file}: capture settings unknown (neither in transforms.json nor in EXIF) for: "
+                           + "; ".join(unknown))
+    if not shots:
+        raise DofviewError(f"{file}: no training frames")
+    return Dataset(root, tuple(shots), tuple(held), sensor, upm, gamma, depth_range)  # type: ignore[arg-type]
+
+
+def load_photo(shot: Shot) -> np.ndarray:
+    """(H, W, 3) float32 pixel values in [0, 1] of an 8-bit PNG photo, checked against its camera."""
+    from ..png import read_png
+
+    try:
+        img = read_png(shot.path)
+    except DofviewError:  # a camera's JPEG or a filtered PNG: needs Pillow (comes with matplotlib)
+        try:
+            from PIL import Image
+        except ImportError:
+            raise DofviewError(f"{shot.path}: only dofview's own PNGs are read without Pillow "
+                               "(pip install pillow)") from None
+        try:
+            img = np.asarray(Image.open(shot.path).convert("RGB"))
+        except OSError as e:
+            raise DofviewError(f"{shot.path}: cannot read image ({e})") from None
+    if img.shape[:2] != (shot.camera.height, shot.camera.width):
+        raise DofviewError(f"{shot.path}: image is {img.shape[1]}×{img.shape[0]}, the camera says "
+                           f"{shot.camera.width}×{shot.camera.height}")
+    return img[..., :3].astype(np.float32) / 255.0

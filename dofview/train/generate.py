@@ -1,0 +1,179 @@
+"""Make a training dataset from any dofview scene, through dofview's own GL renderer.
+
+Every training view gets a random focus distance (uniform in inverse depth between the 10th and
+90th percentile of what the view sees), a random f-number from a list and a random exposure
+(log-uniform around the view's mid-grey key), is rendered with depth of field, tonemapped by
+Eq. 7 (clip, then gamma) and quantised to 8 bits: a PNG whose eXIf chunk holds the settings.
+Held-out views are rendered all-in-focus and kept as linear HDR EXRs for evaluation. No depth
+range is written: the trainer must find the geometry itself.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera, framing_camera, look_at
+from ..errors import DofviewError
+from ..exr import write_exr
+from ..frame import RenderSettings
+from ..lens import Lens, PhysicalLens
+from ..progress import Progress
+from ..scene import GaussianScene
+from ..tonemap import Tonemap, display, to_uint8
+from .exif import write_png_exif
+
+MID_GREY = 0.18
+
+
+@dataclass(frozen=True)
+class Capture:
+    """How the virtual photographer shoots.
+
+    Attributes:
+        views, held_out: training photos and evaluation views.
+        width, height: image size, pixels.
+        focal_mm, sensor_mm: lens focal length and sensor width (fix the field of view).
+        units_per_metre: scene units per metre (sets the aperture diameter f/N in scene units).
+        ev_range: exposure offsets in stops from the view's key exposure, drawn uniformly.
+        f_numbers: f-numbers drawn from.
+        orbit_deg: cameras orbit the target by up to this yaw and half this pitch.
+        gamma: γ of Eq. 7. seed: random seed.
+    """
+
+    views: int = 30
+    held_out: int = 8
+    width: int = 64
+    height: int = 48
+    focal_mm: float = 50.0
+    sensor_mm: float = 36.0
+    units_per_metre: float = 10.0
+    ev_range: tuple[float, float] = (-10.0, 2.0)
+    f_numbers: tuple[float, ...] = (1.4, 2.0, 2.8, 4.0, 5.6, 8.0)
+    orbit_deg: float = 15.0
+    gamma: float = 2.2
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.views < 1 or self.held_out < 0 or self.width < 8 or self.height < 8:
+            raise DofviewError("need ≥ 1 view, ≥ 0 held-out views and images of at least 8×8 pixels")
+        if not (self.ev_range[0] <= self.ev_range[1]) or not self.f_numbers or min(self.f_numbers) <= 0:
+            raise DofviewError("exposure range must be low ≤ high and f-numbers > 0")
+
+    @property
+    def fov_deg(self) -> float:
+        return math.degrees(2 * math.atan(self.sensor_mm / (2 * self.focal_mm)))
+
+
+def orbit(eye: np.ndarray, target: np.ndarray, yaw_deg: float, pitch_deg: float, capture: Capture) -> Camera:
+    """The camera at ``eye`` swung about ``target`` by yaw (around world y) and pitch, looking at it."""
+    off = np.asarray(eye, np.float64) - target
+    y, p = math.radians(yaw_deg), math.radians(pitch_deg)
+    off = np.array([math.cos(y) * off[0] + math.sin(y) * off[2], off[1], -math.sin(y) * off[0] + math.cos(y) * off[2]])
+    horiz = math.hypot(off[0], off[2])
+    elev = math.atan2(-off[1], horiz) + p  # world y points down: raising the eye is −y
+    r = float(np.linalg.norm(off))
+    scale = r * math.cos(elev) / max(horiz, 1e-12)
+    new = np.array([off[0] * scale, -r * math.sin(elev), off[2] * scale])
+    return look_at(target + new, target, capture.width, capture.height, capture.fov_deg)
+
+
+def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Capture(),
+             eye=None, target=None, render: RenderSettings = RenderSettings(), progress: bool = True) -> Path:
+    """Render a dataset of ``scene`` into the new folder ``out_dir``; returns its transforms.json.
+
+    The folder is built beside the target and renamed into place at the end, so a failure leaves
+    nothing behind.
+    """
+    from ..renderer import Renderer
+
+    out = Path(out_dir)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise DofviewError(f"{out}: already exists and is not an empty folder")
+    if not out.parent.is_dir():
+        raise DofviewError(f"{out}: folder {out.parent} does not exist")
+    if (eye is None) != (target is None):
+        raise DofviewError("--eye and --target go together")
+    if eye is None:
+        base = framing_camera(scene, capture.width, capture.height, capture.fov_deg)
+        eye = base.centre
+        lo, hi = scene.robust_bounds()
+        target = (lo + hi) / 2
+    eye, target = np.asarray(eye, np.float64), np.asarray(target, np.float64)
+    rng = np.random.default_rng(capture.seed)
+    angles = rng.uniform(-1, 1, (capture.views + capture.held_out, 2)) * [capture.orbit_deg, capture.orbit_deg / 2]
+    renderer = Renderer(scene)
+    tmp = out.parent / f".{out.name}.partial"
+    shutil.rmtree(tmp, ignore_errors=True)
+    (tmp / "images").mkdir(parents=True)
+    (tmp / "hdr").mkdir()
+    frames = []
+    try:
+        with Progress(f"rendering dataset {out.name}", len(angles), delay=0.0 if progress else 1e9) as bar:
+            for i, (yaw, pitch) in enumerate(angles):
+                cam = orbit(eye, target, yaw, pitch, capture)
+                pinhole = renderer.render(cam, Lens(1.0, 0.0), render)
+                c2w = np.eye(4)
+                c2w[:3, :3], c2w[:3, 3] = cam.R.T, cam.centre
+                frame = {"transform_matrix": c2w.tolist()}
+                if i >= capture.views:
+                    name = f"hdr/view_{i - capture.views:03d}.exr"
+                    write_exr(tmp / name, pinhole.rgba, pinhole.depth)
+                    frames.append({**frame, "split": "test", "hdr_path": name})
+                else:
+                    frames.append({**frame, **_shoot(renderer, cam, pinhole, capture, render, rng, tmp, i)})
+                bar.update(i + 1)
+        doc = {
+            "camera_convention": "opencv", "w": capture.width, "h": capture.height,
+            "fl_x": cam.fx, "fl_y": cam.fy, "cx": cam.cx, "cy": cam.cy,
+            "sensor_mm": capture.sensor_mm, "units_per_metre": capture.units_per_metre, "gamma": capture.gamma,
+            "generator": {"scene": scene.name, "colour_space": scene.colour_space, "gaussians": scene.count,
+                          "eye": eye.tolist(), "target": target.tolist(), "seed": capture.seed,
+                          "ev_range": list(capture.ev_range), "f_numbers": list(capture.f_numbers),
+                          "orbit_deg": capture.orbit_deg},
+            "frames": frames,
+        }
+        (tmp / "transforms.json").write_text(json.dumps(doc, indent=1))
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        renderer.release()
+    return out / "transforms.json"
+
+
+def _shoot(renderer, cam: Camera, pinhole, capture: Capture, render: RenderSettings,
+           rng: np.random.Generator, folder: Path, i: int) -> dict:
+    """Take training photo ``i``: draw its settings, render with depth of field, write the PNG."""
+    covered = pinhole.alpha > 0.5
+    if not covered.any():
+        raise DofviewError(f"view {i} sees nothing of the scene: give --eye/--target that look at it")
+    depths = pinhole.depth[covered]
+    near, far = np.percentile(depths, [10, 90])
+    focus = 1.0 / rng.uniform(1.0 / far, 1.0 / near)
+    luminance = pinhole.rgba[..., :3].mean(-1)[covered]
+    key = MID_GREY / max(float(np.median(luminance)), 1e-6)
+    exposure = key * 2.0 ** rng.uniform(*capture.ev_range)
+    fnumber = float(rng.choice(capture.f_numbers))
+    settings = {
+        "exposure_time": exposure * fnumber ** 2, "f_number": fnumber,
+        "focus_distance": float(focus), "focal_length_mm": capture.focal_mm,
+    }
+    lens = PhysicalLens(capture.focal_mm, fnumber, capture.sensor_mm, capture.units_per_metre).lens(cam.fx, focus)
+    frame = renderer.render(cam, lens, render)
+    photo = to_uint8(display(frame.rgba, frame.encoded, Tonemap(exposure=exposure, gamma=capture.gamma)))
+    name = f"images/view_{i:03d}.png"
+    exif = {"exposure_time": settings["exposure_time"], "f_number": fnumber, "focal_length_mm": capture.focal_mm,
+            "subject_distance_m": focus / capture.units_per_metre}
+    write_png_exif(folder / name, photo, exif)
+    return {"file_path": name, **settings}
+

@@ -1,0 +1,93 @@
+"""Training losses (Cinematic Gaussians Eq. 7–11) and the exposure-aligned warm-up loss.
+
+Images are (H, W, 3) float tensors. Δ(a, b) = 0.8·L1 + 0.2·(1 − SSIM), the 3DGS photometric
+measure. The paper's L_foc compares the outputs of a learned blur detector, which cannot be
+downloaded; here the defocus map g is a local sharpness measure: the square root of the Gaussian-
+weighted local energy of the image's Laplacian (large where the image has in-focus detail, ~0 in
+flat or defocused regions), differentiable by construction.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+
+SSIM_WEIGHT = 0.2
+LAMBDA_EXP = 0.25  # Eq. 8, as in the paper
+LAMBDA_FOC = 1.0
+TONEMAP_FLOOR = 1e-5  # keeps the gradient of x^(1/γ) finite at black
+SATURATED = 254.0 / 255.0  # pixel values outside (DARK, SATURATED) carry no radiance information
+DARK = 1.0 / 255.0
+
+
+def _gauss_kernel(size: int, sigma: float, device, dtype) -> torch.Tensor:
+    x = torch.arange(size, device=device, dtype=dtype) - (size - 1) / 2
+    g = torch.exp(-x * x / (2 * sigma * sigma))
+    g = g / g.sum()
+    return g[:, None] * g[None, :]
+
+
+def _blur(x: torch.Tensor, size: int, sigma: float) -> torch.Tensor:
+    """(C, H, W) → same shape, Gaussian-filtered per channel with replicated borders."""
+    k = _gauss_kernel(size, sigma, x.device, x.dtype)[None, None].repeat(x.shape[0], 1, 1, 1)
+    pad = size // 2
+    return F.conv2d(F.pad(x[None], (pad, pad, pad, pad), mode="replicate"), k, groups=x.shape[0])[0]
+
+
+def ssim(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Mean SSIM (11×11 Gaussian window, σ = 1.5) of two (H, W, C) images in [0, 1]-ish units."""
+    x, y = a.permute(2, 0, 1), b.permute(2, 0, 1)
+    mx, my = _blur(x, 11, 1.5), _blur(y, 11, 1.5)
+    vx = _blur(x * x, 11, 1.5) - mx * mx
+    vy = _blur(y * y, 11, 1.5) - my * my
+    cxy = _blur(x * y, 11, 1.5) - mx * my
+    c1, c2 = 0.01 ** 2, 0.03 ** 2
+    return (((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))).mean()
+
+
+def delta(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Δ of Eq. 9: (1 − λ)·L1 + λ·(1 − SSIM), λ = 0.2."""
+    return (1 - SSIM_WEIGHT) * (a - b).abs().mean() + SSIM_WEIGHT * (1 - ssim(a, b))
+
+
+def tonemap(hdr: torch.Tensor, exposure: float, gamma: float) -> torch.Tensor:
+    """Eq. 7: min(exposure·C, 1)^(1/γ)."""
+    return torch.clamp(hdr * exposure, TONEMAP_FLOOR, 1.0) ** (1.0 / gamma)
+
+
+def sharpness(img: torch.Tensor) -> torch.Tensor:
+    """(H, W, 3) → (1, H, W) defocus map g: sqrt of the local energy of the Laplacian of luma."""
+    luma = img.mean(-1)[None]
+    lap = torch.tensor([[0.0, 1.0, 0.0], [1.0, -4.0, 1.0], [0.0, 1.0, 0.0]], device=img.device, dtype=img.dtype)
+    edge = F.conv2d(F.pad(luma[None], (1, 1, 1, 1), mode="replicate"), lap[None, None])[0]
+    return torch.sqrt(_blur(edge * edge, 5, 1.0) + 1e-8)
+
+
+def photo_loss(rendered: torch.Tensor, photo: torch.Tensor, use_exp: bool = True, use_foc: bool = True,
+               ) -> tuple[torch.Tensor, dict[str, float]]:
+    """Eq. 8: L_rec + λ_exp·L_exp + λ_foc·L_foc of a tonemapped render against its photo."""
+    rec = delta(rendered, photo)
+    total, parts = rec, {"rec": float(rec.detach())}
+    if use_exp:  # Eq. 10: both images scaled to a medium exposure
+        exp = delta(rendered / (2 * rendered.mean() + 1e-6), photo / (2 * photo.mean() + 1e-6))
+        total = total + LAMBDA_EXP * exp
+        parts["exp"] = float(exp.detach())
+    if use_foc:  # Eq. 11 with g = local Laplacian energy
+        foc = delta(sharpness(rendered).permute(1, 2, 0), sharpness(photo).permute(1, 2, 0))
+        total = total + LAMBDA_FOC * foc
+        parts["foc"] = float(foc.detach())
+    return total, parts
+
+
+def aligned_loss(hdr: torch.Tensor, photo: torch.Tensor, exposure: float, key: float, gamma: float) -> torch.Tensor:
+    """Warm-up loss without tonemapping: the render against the photo brought to radiance.
+
+    The photo is un-exposed (pixel^γ / exposure); pixels that are black or saturated hold no
+    radiance and are left out. Both sides are compared at the dataset's key exposure with the
+    gamma but without the clip, so bright and dark regions weigh alike.
+    """
+    valid = (photo > DARK) & (photo < SATURATED)
+    target = (photo ** gamma) * (key / exposure)
+    pred = torch.clamp(hdr * key, min=TONEMAP_FLOOR)
+    diff = (pred ** (1 / gamma) - target ** (1 / gamma)).abs()
+    return (diff * valid).sum() / valid.sum().clamp(min=1)

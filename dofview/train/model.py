@@ -1,0 +1,82 @@
+"""The trainable HDR Gaussian scene: raw parameters, their activations, initialisation, export.
+
+Colours are view-independent (SH degree 0) and stored as logarithms, so radiance is positive and
+unbounded above (a lamp 1000× brighter than a wall is as easy to represent as the wall).
+Opacity is a logit, scales are logs, rotations unnormalised quaternions — as in 3DGS.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from ..scene import SH_C0, ColourSpace, GaussianScene
+from .dataset import Dataset
+
+PARAMS = ("means", "log_scales", "quats", "opacity_logits", "log_colours")
+MIN_COLOUR = 1e-4  # a floor for the log of an initial colour (black pixels)
+
+
+class GaussianModel:
+    """Raw parameters as leaf tensors in :attr:`params` (name → (N, …) float32 tensor)."""
+
+    def __init__(self, params: dict[str, torch.Tensor]) -> None:
+        self.params = {k: params[k].detach().clone().requires_grad_(True) for k in PARAMS}
+
+    @property
+    def count(self) -> int:
+        return int(self.params["means"].shape[0])
+
+    def activated(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(means (N, 3), quats (N, 4), scales (N, 3), opacities (N,), colours (N, 3))."""
+        p = self.params
+        return (p["means"], p["quats"], torch.exp(p["log_scales"]), torch.sigmoid(p["opacity_logits"]),
+                torch.exp(p["log_colours"]))
+
+    def to_scene(self, colour_space: ColourSpace, name: str = "trained") -> GaussianScene:
+        """Export as a degree-0 scene; colour = SH_C0·dc + 0.5 reproduces the trained colour."""
+        with torch.no_grad():
+            means, quats, scales, opacities, colours = (t.detach().cpu().double().numpy() for t in self.activated())
+        quats = quats / np.maximum(np.linalg.norm(quats, axis=1, keepdims=True), 1e-12)
+        return GaussianScene(means=means, quats=quats, scales=scales, opacities=opacities,
+                             sh_dc=(colours - 0.5) / SH_C0, colour_space=colour_space, name=name)
+
+    def state(self) -> dict[str, torch.Tensor]:
+        return {k: v.detach().cpu() for k, v in self.params.items()}
+
+
+def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int, linear: bool,
+                  rng: np.random.Generator, device: torch.device) -> GaussianModel:
+    """``count`` Gaussians at random points of the training cameras' frusta.
+
+    Each point is a random pixel of a random photo, pushed out to a depth drawn uniformly in
+    inverse depth over the dataset's depth range (:meth:`Dataset.scene_depths`: ½× the nearest
+    to 2× the farthest focus distance, unless the file gives one). Its colour is that pixel's
+    value — for an HDR model un-exposed to radiance, pixel^γ / (t/N²) — and its size about one
+    pixel's footprint at that depth. Nothing comes from the scene the photos were made of.
+    """
+    near, far = dataset.scene_depths()
+    pick = rng.integers(0, len(dataset.shots), count)
+    means, colours, sizes = np.empty((count, 3)), np.empty((count, 3)), np.empty(count)
+    inv = rng.uniform(1.0 / far, 1.0 / near, count)
+    for j, (i, inv_z) in enumerate(zip(pick, inv)):
+        shot, photo = dataset.shots[i], photos[i]
+        cam = shot.camera
+        px, py = rng.uniform(0, cam.width), rng.uniform(0, cam.height)
+        z = 1.0 / inv_z
+        means[j] = cam.centre + z * cam.pixel_ray(px, py)
+        value = photo[int(py), int(px)].astype(np.float64)
+        colours[j] = value ** dataset.gamma / shot.exposure if linear else value
+        sizes[j] = 1.5 * z / cam.fx
+    quats = np.zeros((count, 4))
+    quats[:, 0] = 1.0
+    f = lambda a: torch.tensor(a, dtype=torch.float32, device=device)  # noqa: E731
+    return GaussianModel({
+        "means": f(means),
+        "log_scales": f(np.log(np.repeat(sizes[:, None], 3, axis=1))),
+        "quats": f(quats),
+        "opacity_logits": f(np.full(count, math.log(0.3 / 0.7))),
+        "log_colours": f(np.log(np.maximum(colours, MIN_COLOUR))),
+    })

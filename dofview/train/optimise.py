@@ -1,0 +1,248 @@
+"""The training loop: Adam, coarse-to-fine, densification and pruning, checkpoints.
+
+Stage 1 (``warmup`` steps): pinhole renders against exposure-aligned photos (no tonemapping, no
+depth of field), which gives a first HDR point cloud. Stage 2: each render goes through the
+photo's thin lens (Eq. 3–5) and its exposure and gamma (Eq. 7) and is scored by Eq. 8. Every
+``densify_every`` steps Gaussians whose projected means had a large mean gradient are cloned
+(small ones) or split in two (large ones), and nearly transparent ones are pruned, so the model
+grows only where the photos ask for it; the count is logged over time.
+
+Variants (for the ablation): "full", "no-exp" (λ_exp = 0), "no-foc" (λ_foc = 0) and "ldr" — a
+plain 3DGS fit of the 8-bit photos as they are, ignoring exposure and defocus (sRGB output).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..atomic import atomic_output
+from ..errors import DofviewError
+from ..frame import RenderSettings
+from ..lens import Lens
+from ..progress import Progress
+from .dataset import Dataset, load_photo
+from .losses import aligned_loss, delta, photo_loss, tonemap
+from .model import PARAMS, GaussianModel, initial_model
+from .raster import rasterise, rotations
+
+VARIANTS = ("full", "no-exp", "no-foc", "ldr")
+# The trainer splats with τ = 0 (3σ support): a τ cut would hide faint Gaussians from the gradient.
+TRAIN_RENDER = RenderSettings(tau=0.0)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Optimisation settings; learning rates are per step of Adam on the raw parameters.
+
+    ``lr_means`` is relative to the scene's depth extent (far − near, scene units).
+    """
+
+    iterations: int = 2000
+    warmup: int = 500
+    initial: int = 300
+    max_gaussians: int = 1500
+    densify_every: int = 100
+    densify_until: float = 0.8  # fraction of ``iterations``
+    grad_threshold: float = 2e-4  # mean |∂L/∂mean2d| (loss per pixel of shift) that triggers densification
+    prune_opacity: float = 0.01
+    split_scale: float = 1.5  # Gaussians wider than this many pixels (at depth 1 scale) are split
+    lr_means: float = 2e-3
+    lr_log_scales: float = 1e-2
+    lr_quats: float = 2e-3
+    lr_opacity: float = 5e-2
+    lr_colours: float = 2e-2
+    variant: str = "full"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.variant not in VARIANTS:
+            raise DofviewError(f"variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
+        if self.iterations < 1 or self.initial < 1 or self.warmup < 0:
+            raise DofviewError("iterations and initial Gaussians must be ≥ 1, warm-up ≥ 0")
+
+
+@dataclass
+class History:
+    """What happened, every ``every`` steps: step, stage, mean loss since the last record, count."""
+
+    every: int = 50
+    rows: list[dict] = field(default_factory=list)
+
+
+def pick_device(name: str = "auto") -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise DofviewError("--device cuda: no CUDA device is available to torch")
+    return torch.device(name)
+
+
+class Trainer:
+    """Fits a :class:`GaussianModel` to a :class:`Dataset` (see the module docstring)."""
+
+    def __init__(self, dataset: Dataset, config: TrainConfig = TrainConfig(), device: str = "auto") -> None:
+        self.dataset, self.config = dataset, config
+        self.device = pick_device(device)
+        if self.device.type == "cpu":
+            # The tensors are small: one thread is as fast, and several spin-wait badly (10–20×
+            # slower steps) whenever another process holds a core.
+            torch.set_num_threads(1)
+        self.rng = np.random.default_rng(config.seed)
+        torch.manual_seed(config.seed)
+        photos = [load_photo(s) for s in dataset.shots]
+        self.photos = [torch.tensor(p, device=self.device) for p in photos]
+        self.lenses = dataset.lenses()
+        self.key = dataset.key_exposure()
+        near, far = dataset.scene_depths()
+        self.extent = far - near
+        self.linear = config.variant != "ldr"
+        self.model = initial_model(dataset, photos, config.initial, self.linear, self.rng, self.device)
+        self.step = 0
+        self.history = History()
+        self._new_optimiser()
+        self._reset_stats()
+
+    # ---- optimiser -------------------------------------------------------------------------
+    def _lrs(self) -> dict[str, float]:
+        c = self.config
+        return {"means": c.lr_means * self.extent, "log_scales": c.lr_log_scales, "quats": c.lr_quats,
+                "opacity_logits": c.lr_opacity, "log_colours": c.lr_colours}
+
+    def _new_optimiser(self) -> None:
+        lrs = self._lrs()
+        self.optimiser = torch.optim.Adam(
+            [{"params": [self.model.params[k]], "lr": lrs[k], "name": k} for k in PARAMS], eps=1e-15)
+
+    def _reset_stats(self) -> None:
+        n = self.model.count
+        self.grad_sum = torch.zeros(n, device=self.device)
+        self.grad_count = torch.zeros(n, device=self.device)
+
+    # ---- one step --------------------------------------------------------------------------
+    def loss(self, i: int) -> tuple[torch.Tensor, object]:
+        """The loss of training photo ``i`` at the current stage, and the raster (for its mean2d)."""
+        shot, photo = self.dataset.shots[i], self.photos[i]
+        means, quats, scales, opacities, colours = self.model.activated()
+        warm = self.step < self.config.warmup
+        if self.config.variant == "ldr" or warm:
+            raster = rasterise(means, quats, scales, opacities, colours, shot.camera, Lens(1.0, 0.0),
+                               TRAIN_RENDER, retain_mean2d=True)
+            if self.config.variant == "ldr":
+                return delta(raster.rgb, photo), raster
+            return aligned_loss(raster.rgb, photo, shot.exposure, self.key, self.dataset.gamma), raster
+        raster = rasterise(means, quats, scales, opacities, colours, shot.camera, self.lenses[i],
+                           TRAIN_RENDER, retain_mean2d=True)
+        ldr = tonemap(raster.rgb, shot.exposure, self.dataset.gamma)
+        loss, _ = photo_loss(ldr, photo, use_exp=self.config.variant != "no-exp",
+                             use_foc=self.config.variant != "no-foc")
+        return loss, raster
+
+    def train_step(self) -> float:
+        i = int(self.rng.integers(len(self.dataset.shots)))
+        if self.config.warmup and self.step == self.config.warmup:
+            self._new_optimiser()  # stage 2 starts with fresh moments: the loss changes scale
+        loss, raster = self.loss(i)
+        loss.backward()
+        if raster.mean2d.grad is not None:
+            self.grad_sum.index_add_(0, raster.drawn, raster.mean2d.grad.norm(dim=1))
+            self.grad_count.index_add_(0, raster.drawn, torch.ones_like(raster.drawn, dtype=torch.float32))
+        self.optimiser.step()
+        self.optimiser.zero_grad(set_to_none=True)
+        self.step += 1
+        c = self.config
+        if self.step % c.densify_every == 0 and self.step < c.densify_until * c.iterations:
+            self.densify_and_prune()
+        return float(loss.detach())
+
+    # ---- densification ---------------------------------------------------------------------
+    def densify_and_prune(self) -> None:
+        """Clone or split where the mean screen-space gradient is large; prune near-transparent."""
+        c, p = self.config, self.model.params
+        with torch.no_grad():
+            avg = self.grad_sum / self.grad_count.clamp(min=1)
+            grow = torch.nonzero(avg > c.grad_threshold).squeeze(1)
+            room = max(c.max_gaussians - self.model.count, 0)
+            grow = grow[torch.argsort(avg[grow], descending=True)[:room]]
+            # a Gaussian's width in pixels, judged at its distance from the mean training camera
+            depth = (p["means"][grow] - self._mean_centre()).norm(dim=1).clamp(min=1e-6)
+            px = torch.exp(p["log_scales"][grow]).amax(1) / depth * self._mean_fx()
+            split, clone = grow[px > c.split_scale], grow[px <= c.split_scale]
+            new = {k: [p[k][clone]] for k in PARAMS}
+            for _ in range(2):  # each split Gaussian becomes two, sampled from itself, 1.6× smaller
+                sample = torch.randn(len(split), 3, device=self.device) * torch.exp(p["log_scales"][split])
+                new["means"].append(p["means"][split] + torch.einsum("nij,nj->ni", rotations(p["quats"][split]), sample))
+                new["log_scales"].append(p["log_scales"][split] - math.log(1.6))
+                for k in ("quats", "opacity_logits", "log_colours"):
+                    new[k].append(p[k][split])
+            keep = torch.ones(self.model.count, dtype=torch.bool, device=self.device)
+            keep[split] = False
+            keep &= torch.sigmoid(p["opacity_logits"]) >= c.prune_opacity
+            self._edit(keep, {k: torch.cat(v) for k, v in new.items()})
+        self._reset_stats()
+
+    def _mean_centre(self) -> torch.Tensor:
+        centres = np.mean([s.camera.centre for s in self.dataset.shots], axis=0)
+        return torch.tensor(centres, dtype=torch.float32, device=self.device)
+
+    def _mean_fx(self) -> float:
+        return float(np.mean([s.camera.fx for s in self.dataset.shots]))
+
+    def _edit(self, keep: torch.Tensor, new: dict[str, torch.Tensor]) -> None:
+        """Keep rows ``keep`` of every parameter, append ``new``; Adam moments follow (zeros for new)."""
+        for group in self.optimiser.param_groups:
+            old = group["params"][0]
+            name = group["name"]
+            state = self.optimiser.state.pop(old, None)
+            param = torch.cat([old.detach()[keep], new[name]]).requires_grad_(True)
+            if state:
+                for m in ("exp_avg", "exp_avg_sq"):
+                    state[m] = torch.cat([state[m][keep], torch.zeros_like(new[name])])
+                self.optimiser.state[param] = state
+            group["params"][0] = param
+            self.model.params[name] = param
+
+    # ---- the loop, checkpoints -------------------------------------------------------------
+    def run(self, progress: bool = True, checkpoint: Path | None = None, checkpoint_every: int = 0) -> GaussianModel:
+        """Train to ``config.iterations`` steps (from wherever a resumed run stands)."""
+        c = self.config
+        total, seen = 0.0, 0
+        with Progress(f"training ({c.variant})", c.iterations, delay=0.5 if progress else 1e9) as bar:
+            while self.step < c.iterations:
+                total += self.train_step()
+                seen += 1
+                if self.step % self.history.every == 0 or self.step == c.iterations:
+                    stage = "warm-up" if self.step <= c.warmup and c.variant != "ldr" else "full"
+                    self.history.rows.append({"step": self.step, "stage": stage, "loss": total / seen,
+                                              "gaussians": self.model.count})
+                    bar.update(self.step, info=f"loss {total / seen:.4f} · {self.model.count} Gaussians")
+                    total, seen = 0.0, 0
+                if checkpoint is not None and checkpoint_every and self.step % checkpoint_every == 0:
+                    self.save_checkpoint(checkpoint)
+        return self.model
+
+    def save_checkpoint(self, path: Path) -> None:
+        """Parameters, Adam state, step, history and random state, written whole or not at all."""
+        data = {"step": self.step, "params": self.model.state(), "optimiser": self.optimiser.state_dict(),
+                "history": self.history.rows, "config": asdict(self.config), "rng": self.rng.bit_generator.state}
+        with atomic_output(path) as tmp:
+            torch.save(data, tmp)
+
+    def load_checkpoint(self, path: Path) -> None:
+        try:
+            data = torch.load(path, map_location=self.device, weights_only=False)
+        except (OSError, RuntimeError, EOFError) as e:
+            raise DofviewError(f"{path}: cannot read checkpoint ({e})") from None
+        if data.get("config", {}).get("variant") != self.config.variant:
+            raise DofviewError(f"{path}: checkpoint is of variant {data.get('config', {}).get('variant')!r}, "
+                               f"not {self.config.variant!r}")
+        self.model = GaussianModel({k: v.to(self.device) for k, v in data["params"].items()})
+        self._new_optimiser()
+        self.optimiser.load_state_dict(data["optimiser"])
+        self.step, self.history.rows = int(data["step"]), list(data["history"])
+        self.rng.bit_generator.state = data["rng"]
+        self._reset_stats()

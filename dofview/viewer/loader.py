@@ -1,0 +1,60 @@
+"""Loading a scene file in the background, with a progress fraction and the error kept for the UI."""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+import traceback
+from pathlib import Path
+
+from ..errors import DofviewError
+from ..scene import GaussianScene
+from ..scenefile import load_scene
+
+
+class SceneLoad:
+    """One scene file being read on a worker thread.
+
+    Poll :attr:`done`; then either :attr:`scene` is set, or :attr:`error` holds a one-line message.
+    :attr:`fraction` (0…1) and :attr:`elapsed` (s) drive the progress bar meanwhile.
+    """
+
+    def __init__(self, path: str | Path, colour_space: str | None = None) -> None:
+        self.path = Path(path)
+        self.colour_space = colour_space
+        self.fraction = 0.0
+        self.scene: GaussianScene | None = None
+        self.error: str | None = None
+        self._t0 = time.perf_counter()
+        self._finished = threading.Event()
+        threading.Thread(target=self._run, name="dofview-load", daemon=True).start()
+
+    @property
+    def done(self) -> bool:
+        return self._finished.is_set()
+
+    @property
+    def elapsed(self) -> float:
+        return time.perf_counter() - self._t0
+
+    def wait(self, timeout: float | None = None) -> bool:
+        return self._finished.wait(timeout)
+
+    def _progress(self, done: int, total: int) -> None:
+        self.fraction = done / max(total, 1)
+
+    def _run(self) -> None:
+        try:
+            scene = load_scene(self.path, progress=self._progress)
+            if self.colour_space:
+                scene.colour_space = self.colour_space
+            self.scene = scene
+        except DofviewError as e:
+            self.error = str(e)
+        except Exception as e:  # a bug or an unexpected library failure: keep the viewer alive, show it
+            traceback.print_exc(file=sys.stderr)
+            self.error = f"{self.path}: could not load ({type(e).__name__}: {e})"
+        finally:
+            self.fraction = 1.0
+            self._finished.set()

@@ -1,0 +1,213 @@
+"""The ImGui layer: the side panel (lens, image, camera, status, files), the help overlay and
+the loading bar. Widgets write straight into the viewer's settings; actions call its methods."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from imgui_bundle import imgui
+
+from ..frame import OPACITY_NORMS
+from ..scene import COLOUR_SPACES
+from .input import HELP
+
+if TYPE_CHECKING:
+    from .viewer import Viewer
+
+PANEL_WIDTH = 330  # window units; the image fills the rest of the window
+ERROR_COLOUR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
+# portable_file_dialogs drives one of these programs on Linux; without one, paths are typed in
+DIALOG_PROGRAMS = ("zenity", "kdialog", "matedialog", "qarma")
+# the default ImGui font covers Latin-1 only: UI strings stay within it
+_FIXED = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+
+
+_CLAMP = imgui.SliderFlags_.always_clamp  # Ctrl+click typing stays in range too (no zero f-number)
+
+
+def _slider(label: str, value: float, lo: float, hi: float, fmt: str = "%.3f") -> tuple[bool, float]:
+    return imgui.slider_float(label, value, lo, hi, fmt, _CLAMP)
+
+
+def _log_slider(label: str, value: float, lo: float, hi: float, fmt: str = "%.4g") -> tuple[bool, float]:
+    return imgui.slider_float(label, value, lo, hi, fmt, _CLAMP | imgui.SliderFlags_.logarithmic)
+
+
+def _note(text: str, colour: imgui.ImVec4 | None = None) -> None:
+    """Greyed (or coloured) text wrapped to the panel."""
+    imgui.push_text_wrap_pos(0.0)
+    if colour is None:
+        imgui.text_disabled(text)
+    else:
+        imgui.text_colored(colour, text)
+    imgui.pop_text_wrap_pos()
+
+
+def _lens(v: "Viewer") -> None:
+    s = v.settings
+    lo, hi = 1e-3 * v.radius, 100.0 * v.radius
+    changed, focus = _log_slider("focus", s.focus, lo, hi)
+    entered, typed = imgui.input_float("focus (type)", s.focus, 0.0, 0.0, "%.5g", imgui.InputTextFlags_.enter_returns_true)
+    if changed or (entered and math.isfinite(typed) and typed > 0):
+        v.set_focus(focus if changed else typed, smooth=False)
+    _, s.dof = imgui.checkbox("depth of field", s.dof)
+    imgui.same_line()
+    _, s.physical = imgui.checkbox("physical lens", s.physical)
+    if s.physical:
+        _, s.fnumber = _log_slider("f-number N", s.fnumber, 0.7, 64.0, "f/%.2g")
+        _, s.focal_mm = _log_slider("focal length mm", s.focal_mm, 4.0, 800.0, "%.3g mm")
+        _, s.sensor_mm = _log_slider("sensor width mm", s.sensor_mm, 2.0, 100.0, "%.3g mm")
+        _, s.units_per_metre = _log_slider("units per metre", s.units_per_metre, 1e-3, 1e3)
+        imgui.text_disabled(f"aperture strength A = {v.lens().aperture:.4g}")
+    else:
+        _, s.aperture = _log_slider("aperture A", s.aperture, 0.0, 200.0 * max(v.radius, 1.0))
+    imgui.text_disabled("blur radius R = A/2 * |1/z - 1/focus| px")
+    _, s.smooth_focus = imgui.checkbox("smooth focus pull", s.smooth_focus)
+    imgui.same_line()
+    _, s.focus_aid = imgui.checkbox("focus aid", s.focus_aid)
+    rs = s.render
+    changed_tau, tau = _slider("tau (min alpha)", rs.tau * 255.0, 0.0, 16.0, "%.2f/255")
+    changed_k, k = _slider("k (aperture cov.)", rs.k, 0.0, 1.0)
+    changed_norm, norm = imgui.combo("opacity norm.", OPACITY_NORMS.index(rs.opacity_norm), list(OPACITY_NORMS))
+    changed_lin, lin = imgui.checkbox("blend in linear light", rs.blend_linear)
+    if changed_tau or changed_k or changed_norm or changed_lin:
+        s.render = replace(rs, tau=tau / 255.0, k=k, opacity_norm=OPACITY_NORMS[norm], blend_linear=lin)
+
+
+def _image(v: "Viewer") -> None:
+    s = v.settings
+    _, s.ev = _slider("exposure EV", s.ev, -10.0, 10.0, "%+.2f")
+    _, s.gamma = _slider("gamma", s.gamma, 0.5, 4.0, "%.2f")
+    changed, cs = imgui.combo("colour space", COLOUR_SPACES.index(s.colour_space),
+                              ["sRGB-encoded", "linear HDR"])
+    if changed:
+        s.colour_space = COLOUR_SPACES[cs]
+    imgui.begin_disabled(not s.physical)
+    _, s.exposure_follows_aperture = imgui.checkbox("aperture changes exposure (t/N²)", s.exposure_follows_aperture)
+    if s.exposure_follows_aperture:
+        _, s.shutter_s = _log_slider("shutter t s", s.shutter_s, 1e-4, 30.0)
+    imgui.end_disabled()
+    if not s.physical:
+        imgui.text_disabled("(t/N² needs the physical lens)")
+    changed, bg = imgui.color_edit3("background", list(s.background))
+    if changed:
+        s.background = tuple(float(c) for c in bg)
+
+
+def _camera(v: "Viewer") -> None:
+    if imgui.button("reset (R)"):
+        v.reset_view()
+    imgui.same_line()
+    _, v.fly_mode = imgui.checkbox("fly mode (Tab)", v.fly_mode)
+    if v.cameras:
+        if imgui.button("< prev"):
+            v.step_view(-1)
+        imgui.same_line()
+        if imgui.button("next >"):
+            v.step_view(1)
+        imgui.same_line()
+        names = [c.name or str(i) for i, c in enumerate(v.cameras)]
+        idx = v.view_index if v.view_index is not None else -1
+        imgui.set_next_item_width(-1)
+        changed, idx = imgui.combo("##view", idx, names)
+        if changed:
+            v.set_view(idx)
+    else:
+        imgui.text_disabled("no cameras.json (--cameras or drop one)")
+
+
+def _status(v: "Viewer") -> None:
+    st = v.renderer.stats
+    ft = np.array(v.frame_ms, np.float32)
+    if ft.size:
+        imgui.text(f"frame {ft[-1]:.1f} ms  splat {v.render_ms:.1f} ms  sort {st.sort_ms:.1f} ms")
+        imgui.plot_lines("##frametimes", ft, overlay_text=f"max {ft.max():.0f} ms", scale_min=0.0,
+                         graph_size=imgui.ImVec2(-1, 40))
+    imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")
+    cam = v.camera()
+    imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.scene_path.name}")
+
+
+def _files(v: "Viewer") -> None:
+    imgui.set_next_item_width(-70)
+    _, v.save_path = imgui.input_text("##save", v.save_path)
+    imgui.same_line()
+    if imgui.button("save"):
+        v.save()
+    _, v.save_png = imgui.checkbox("with PNG", v.save_png)
+    imgui.same_line()
+    if imgui.button("copy as command"):
+        v.copy_command()
+    imgui.set_next_item_width(-70)
+    entered, v.open_path = imgui.input_text("##open", v.open_path, imgui.InputTextFlags_.enter_returns_true)
+    imgui.same_line()
+    if (imgui.button("open") or entered) and v.open_path:
+        v.open_file(v.open_path)
+    if any(shutil.which(p) for p in DIALOG_PROGRAMS):
+        if imgui.button("browse...") and v.dialog is None:
+            from imgui_bundle import portable_file_dialogs as pfd
+
+            v.dialog = pfd.open_file("Open a scene", str(v.scene_path.parent),
+                                     ["Scenes", "*.ply *.splat", "Cameras", "*.json"])
+    else:
+        _note("(no dialog program: type a path or drop a file)")
+    if v.dialog is not None and v.dialog.ready(0):
+        chosen = v.dialog.result()
+        v.dialog = None
+        if chosen:
+            v.open_file(chosen[0])
+
+
+def _messages(v: "Viewer") -> None:
+    if v.loading is not None:
+        imgui.text(f"loading {v.loading.path.name} ({v.loading.elapsed:.1f} s)")
+        imgui.progress_bar(v.loading.fraction)
+    if v.error:
+        _note(v.error, ERROR_COLOUR)
+    elif v.message:
+        _note(v.message)
+
+
+def _help(v: "Viewer") -> None:
+    imgui.set_next_window_pos(imgui.ImVec2(12, 12), imgui.Cond_.always)
+    imgui.set_next_window_bg_alpha(0.9)
+    expanded, still_open = imgui.begin("Help (F1 / H)", True, imgui.WindowFlags_.always_auto_resize | _FIXED)
+    if expanded and imgui.begin_table("keys", 2):
+        for key, what in HELP:
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.text(key)
+            imgui.table_next_column()
+            imgui.text_disabled(what)
+        imgui.end_table()
+    imgui.end()
+    v.show_help = bool(still_open)
+
+
+def draw_ui(v: "Viewer") -> None:
+    """The whole ImGui layer for this frame."""
+    w, h = v.window.window_size
+    imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0), imgui.Cond_.always)
+    imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, h), imgui.Cond_.always)
+    imgui.begin("dofview", None, _FIXED | imgui.WindowFlags_.no_title_bar)
+    imgui.push_item_width(-120)
+    _messages(v)
+    if imgui.collapsing_header("Lens", imgui.TreeNodeFlags_.default_open):
+        _lens(v)
+    if imgui.collapsing_header("Image", imgui.TreeNodeFlags_.default_open):
+        _image(v)
+    if imgui.collapsing_header("Camera", imgui.TreeNodeFlags_.default_open):
+        _camera(v)
+    if imgui.collapsing_header("Status", imgui.TreeNodeFlags_.default_open):
+        _status(v)
+    if imgui.collapsing_header("Files", imgui.TreeNodeFlags_.default_open):
+        _files(v)
+    imgui.text_disabled("F1 or H: keys and mouse")
+    imgui.pop_item_width()
+    imgui.end()
+    if v.show_help:
+        _help(v)

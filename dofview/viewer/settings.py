@@ -1,0 +1,102 @@
+"""What the viewer's lens and image panels hold, and the render objects built from it.
+
+Kept apart from the window so the mapping panel values → Lens / Tonemap / RenderSettings is the
+same one the headless renderer gets, and can be tested without a display.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..camera import Camera
+from ..frame import RenderSettings
+from ..lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
+from ..tonemap import Tonemap
+
+FOCUS_PULL_S = 0.15  # duration of a smooth focus pull
+
+
+@dataclass
+class ViewerSettings:
+    """Panel values. Distances in scene units, aperture strength A in px·(scene unit).
+
+    With ``physical`` on, the aperture comes from focal length, f-number, sensor width and the
+    scene scale (Cinematic Gaussians Eq. 3) instead of ``aperture``. With ``exposure_follows_aperture``
+    on, exposure is 2^EV · t/N² (Eq. 7), so stopping down darkens the image as a real lens does.
+    """
+
+    focus: float = 1.0
+    aperture: float = 0.0
+    dof: bool = True
+    physical: bool = False
+    focal_mm: float = 50.0
+    fnumber: float = 2.8
+    sensor_mm: float = 36.0
+    units_per_metre: float = 1.0
+    ev: float = 0.0
+    gamma: float = 2.2
+    exposure_follows_aperture: bool = False
+    shutter_s: float = 1.0 / 8.0
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    colour_space: str = "srgb"
+    focus_aid: bool = False
+    smooth_focus: bool = True
+    render: RenderSettings = field(default_factory=RenderSettings)
+
+    def physical_lens(self) -> PhysicalLens:
+        return PhysicalLens(self.focal_mm, self.fnumber, self.sensor_mm, self.units_per_metre)
+
+    def lens(self, camera: Camera) -> Lens:
+        """The lens for ``camera`` (its f_x turns a physical lens into an aperture strength)."""
+        if not self.dof:
+            return Lens(self.focus, 0.0)
+        if self.physical:
+            f = self.physical_lens().focal_units
+            # a physical lens cannot focus inside its focal length: hold the focus just beyond it
+            return self.physical_lens().lens(camera.fx, max(self.focus, f * 1.001))
+        return Lens(self.focus, self.aperture)
+
+    def tonemap(self) -> Tonemap:
+        exposure = exposure_from_ev(self.ev)
+        if self.exposure_follows_aperture and self.physical:
+            exposure *= exposure_from_shutter(self.shutter_s, self.fnumber)
+        return Tonemap(exposure=exposure, gamma=self.gamma, background=self.background)
+
+    def lens_info(self) -> dict[str, float | None]:
+        """The physical-lens values written into a saved EXR's header (None when A is given directly)."""
+        return {"fnumber": self.fnumber if self.physical else None,
+                "focal_mm": self.focal_mm if self.physical else None,
+                "sensor_mm": self.sensor_mm, "units_per_metre": self.units_per_metre}
+
+
+class FocusPull:
+    """A focus change eased over :data:`FOCUS_PULL_S` seconds, in inverse depth (how blur changes).
+
+    ``start(current, target, now)`` begins a pull; ``value(now)`` is the focus at time ``now``
+    (seconds), reaching ``target`` exactly at the end; ``active`` says whether one is running.
+    """
+
+    def __init__(self, duration: float = FOCUS_PULL_S) -> None:
+        self.duration = duration
+        self._from = self._to = 1.0
+        self._t0 = -math.inf
+        self.target: float | None = None
+
+    def start(self, current: float, target: float, now: float) -> None:
+        self._from, self._to, self._t0, self.target = 1.0 / current, 1.0 / target, now, target
+
+    @property
+    def active(self) -> bool:
+        return self.target is not None
+
+    def value(self, now: float) -> float:
+        """The focus distance at ``now``; finishing the pull clears :attr:`active`."""
+        if self.target is None:
+            raise RuntimeError("no focus pull running")
+        s = min(max((now - self._t0) / self.duration, 0.0), 1.0)
+        if s >= 1.0:
+            target, self.target = self.target, None
+            return target
+        ease = s * s * (3.0 - 2.0 * s)  # smoothstep: starts and stops gently
+        return 1.0 / (self._from + (self._to - self._from) * ease)

@@ -1,0 +1,361 @@
+"""The viewer's state and frame loop: scene, renderer, camera controls, lens/image settings.
+
+One frame: take a finished load or sort, apply mouse and keys, advance a focus pull, request a
+sort when the view moved (drawn meanwhile with the last order), splat again only when the camera,
+lens or splatting settings changed, tonemap the image into the left of the window, draw the
+panel over the right. Exposure, gamma, background and the focus aid only re-run the tonemap.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import replace
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from ..camera import Camera, framing_camera, load_cameras_json
+from ..cli import render_command_line, save_render
+from ..errors import DofviewError
+from ..focus import auto_focus
+from ..lens import Lens
+from ..renderer import Renderer
+from ..scene import GaussianScene
+from .controls import ViewControls
+from .input import InputHandler
+from .loader import SceneLoad
+from .panel import PANEL_WIDTH, draw_ui
+from .settings import FocusPull, ViewerSettings
+from .sorter import SortThread
+from .window import Window
+
+COUNT_EVERY_S = 0.5  # how often the drawn-Gaussian counter is read back (it costs a GPU sync)
+FRAME_HISTORY = 120
+
+
+def scene_extent(scene: GaussianScene) -> tuple[np.ndarray, float]:
+    """(centre (3,), radius) of the scene's robust bounds, scene units."""
+    lo, hi = scene.robust_bounds()
+    return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-6)
+
+
+class Viewer:
+    """Everything the window shows. The panel (panel.py) and the script (script.py) drive it
+    through its attributes and methods, the same ones mouse and keys use."""
+
+    def __init__(self, window: Window, scene: GaussianScene, scene_path: Path, settings: ViewerSettings,
+                 camera: Camera, cameras: list[Camera]) -> None:
+        self.window = window
+        self.ctx = window.ctx
+        self.settings = settings
+        self.cameras = cameras
+        self.view_index: int | None = None
+        self.sorter = SortThread()
+        self.pull = FocusPull()
+        self.loading: SceneLoad | None = None
+        self.message = ""  # last status line (saved file, copied command)
+        self.error = ""  # last error (failed load or save), shown in red until the next action
+        self.show_help = False
+        self.fly_mode = False
+        self.fly_speed = 1.0  # scene units per second
+        self.frame_ms: deque[float] = deque(maxlen=FRAME_HISTORY)
+        self.render_ms = 0.0
+        self.frames = 0
+        self.sort_requests = 0  # views sent to the sort thread
+        self.splat_draws = 0  # splatting passes shown (exposure, gamma, background, focus aid add none)
+        self.save_path = "view.exr"
+        self.save_png = True
+        self.open_path = ""
+        self.dialog = None  # a portable_file_dialogs.open_file while one is open
+        self.capture_requests: list[Path] = []  # image area PNGs to write this frame (script)
+        self.screenshot_requests: list[Path] = []  # whole-window PNGs to write this frame (script)
+        self.handle_input = InputHandler()
+        self._last_frame = time.perf_counter()
+        self._last_count = -math.inf
+        self._drawn_key: tuple | None = None
+        self._sort_key: bytes | None = None  # the view the newest sort was asked for
+        self._order_key: bytes | None = None  # the view the uploaded order belongs to
+        self.generation = 0
+        self.renderer: Renderer | None = None
+        self.set_scene(scene, scene_path, camera)
+
+    # ---- scene and views -------------------------------------------------------------------
+    def set_scene(self, scene: GaussianScene, path: Path, camera: Camera | None = None) -> None:
+        """Show ``scene``: upload it, frame it (or start at ``camera``) and sort once up front.
+
+        The new scene is uploaded before the old one is released, so a failed upload keeps it.
+        """
+        renderer = Renderer(scene, ctx=self.ctx)
+        if self.renderer is not None:
+            self.renderer.release()
+        self.renderer = renderer
+        self.scene, self.scene_path = scene, Path(path)
+        self.generation += 1
+        self.settings.colour_space = scene.colour_space
+        self.centre, self.radius = scene_extent(scene)
+        self.fly_speed = 0.5 * self.radius
+        self.view_index = None
+        self._set_controls(camera or framing_camera(scene, 800, 600))
+        self._drawn_key = self._sort_key = None
+        self._last_count = -math.inf  # count the new scene's first frame
+        self.window.set_title(f"dofview — {self.scene_path.name}")
+
+    def _set_controls(self, camera: Camera) -> None:
+        fwd = camera.forward
+        pivot = float(np.dot(self.centre - camera.centre, fwd))
+        self.controls = ViewControls.from_camera(camera, pivot if pivot > 0.05 * self.radius else self.radius)
+
+    def reset_view(self) -> None:
+        """Back to the camera that frames the whole scene."""
+        self.view_index = None
+        self._set_controls(framing_camera(self.scene, 800, 600))
+
+    def set_view(self, index: int) -> None:
+        """Jump to camera ``index`` of cameras.json (wrapping around)."""
+        if not self.cameras:
+            return
+        self.view_index = index % len(self.cameras)
+        self._set_controls(self.cameras[self.view_index])
+
+    def step_view(self, delta: int) -> None:
+        """Next (delta 1) or previous (-1) view; from a free camera, the first or the last."""
+        if self.view_index is None:
+            self.set_view(0 if delta > 0 else -1)
+        else:
+            self.set_view(self.view_index + delta)
+
+    def open_file(self, path: str | Path) -> None:
+        """Start loading a scene (in the background) or, for a .json file, a set of cameras."""
+        path = Path(path).expanduser()
+        self.error = ""
+        if path.suffix.lower() == ".json":
+            try:
+                self.cameras = load_cameras_json(path)
+            except DofviewError as e:
+                self.error = str(e)
+                return
+            self.message = f"{len(self.cameras)} cameras from {path.name}"
+            self.set_view(0)
+            return
+        self.loading = SceneLoad(path)
+
+    def _finish_load(self) -> None:
+        load, self.loading = self.loading, None
+        if load.error:
+            self.error = load.error  # the current scene stays
+            return
+        try:
+            self.set_scene(load.scene, load.path)
+        except (DofviewError, moderngl.Error) as e:  # e.g. too large for this GPU's memory
+            self.error = f"{load.path}: cannot show this scene ({e})"
+            return
+        self.cameras = []  # those belonged to the previous scene
+        self.message = f"loaded {load.path.name}: {load.scene.count:,} Gaussians in {load.elapsed:.1f} s"
+        self.auto_focus()
+
+    # ---- the current image -----------------------------------------------------------------
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) in framebuffer pixels of the image area left of the panel."""
+        fw, fh = self.window.framebuffer_size
+        panel = int(round(PANEL_WIDTH * self.window.pixel_ratio))
+        return max(fw - panel, 1), max(fh, 1)
+
+    def camera(self) -> Camera:
+        w, h = self.image_size
+        name = self.cameras[self.view_index].name if self.view_index is not None else ""
+        return self.controls.camera(w, h, name)
+
+    def lens(self, camera: Camera | None = None) -> Lens:
+        return self.settings.lens(camera or self.camera())
+
+    def command_line(self) -> str:
+        camera = self.camera()
+        return render_command_line(str(self.scene_path), camera, self.lens(camera), self.settings.tonemap(),
+                                   self.settings.render, self.settings.colour_space)
+
+    # ---- actions ---------------------------------------------------------------------------
+    def set_focus(self, focus: float, smooth: bool | None = None) -> None:
+        """Focus at ``focus`` scene units, eased over 0.15 s when smooth focus is on."""
+        if smooth if smooth is not None else self.settings.smooth_focus:
+            self.pull.start(self.settings.focus, focus, time.perf_counter())
+        else:
+            self.pull.target = None
+            self.settings.focus = focus
+
+    def depth_under(self, x: float, y: float) -> float | None:
+        """Depth (scene units) under image pixel (x, y) (framebuffer pixels, top-left origin), from
+        the renderer's α-weighted inverse depth of a pinhole pass (a blurred pass would mix objects)."""
+        camera = self.camera()
+        self.renderer.draw(camera, Lens(self.settings.focus, 0.0), self.settings.render, sort=False)
+        depth = self.renderer.focus_depth_at(x, y)
+        self._drawn_key = None  # the targets now hold the pinhole pass
+        return depth
+
+    def focus_at(self, x: float, y: float) -> float | None:
+        """Click-to-focus at image pixel (x, y); returns the depth, or None over empty space."""
+        depth = self.depth_under(x, y)
+        if depth is None:
+            self.message = "nothing under the cursor to focus on"
+        else:
+            self.set_focus(depth)
+            self.message = f"focus {depth:.4g} (pixel {x:.0f}, {y:.0f})"
+        return depth
+
+    def auto_focus(self) -> None:
+        """Focus at the median depth under the image centre (as ``dofview render --focus auto``)."""
+        camera = self.camera()
+        self.renderer.draw(camera, Lens(1.0, 0.0), self.settings.render, sort=True)
+        depth = auto_focus(self.renderer.read())
+        self._drawn_key = None
+        self.settings.focus = depth if depth is not None else self.controls.pivot_distance
+        self.pull.target = None
+
+    def save(self, path: str | Path | None = None, png: bool | None = None) -> None:
+        """Write the current view as EXR (and PNG beside it), exactly as ``dofview render`` would."""
+        out = Path(path or self.save_path).expanduser()
+        png = self.save_png if png is None else png
+        self.error = ""
+        try:
+            if out.suffix.lower() != ".exr":
+                raise DofviewError(f"{out}: output must be an .exr file")
+            camera = self.camera()
+            save_render(self.renderer, camera, self.lens(camera), self.settings.tonemap(), self.settings.render,
+                        str(self.scene_path), out, out.with_suffix(".png") if png else None,
+                        lens_info=self.settings.lens_info())
+        except DofviewError as e:
+            self.error = str(e)
+            return
+        finally:
+            self._drawn_key = None
+        self.message = f"saved {out}" + (" and .png" if png else "")
+
+    def copy_command(self) -> str:
+        """Put the equivalent ``dofview render`` line on the clipboard."""
+        command = self.command_line()
+        self.window.set_clipboard(command)
+        self.message = "copied the dofview render command to the clipboard"
+        return command
+
+    # ---- one frame -------------------------------------------------------------------------
+    def _take_results(self) -> None:
+        if self.loading is not None and self.loading.done:
+            self._finish_load()
+        res = self.sorter.result()
+        if res is not None and res.generation == self.generation:
+            self.renderer.set_order(res.order, res.view_key)
+            self._order_key = res.view_key
+            self.renderer.stats.sort_ms = res.ms
+            self._drawn_key = None
+
+    def _state_key(self, camera: Camera, lens: Lens) -> tuple:
+        return (camera.view_key(), camera.width, camera.height, camera.fx, lens, self.settings.render,
+                self.settings.colour_space)
+
+    def _render(self, now: float) -> None:
+        """Splat if anything the splats depend on changed, then tonemap into the image area."""
+        if self.pull.active:
+            self.settings.focus = self.pull.value(now)
+        camera = self.camera()
+        lens = self.lens(camera)
+        key = camera.view_key()
+        if self._sort_key is None:  # a new scene: sort once here so the first frame is right
+            self.renderer.sort(camera)
+            self._sort_key = self._order_key = key
+        elif key != self._sort_key:
+            self.sorter.request(self.scene.means, camera, self.generation)
+            self.sort_requests += 1
+            self._sort_key = key
+        state = self._state_key(camera, lens)
+        if state != self._drawn_key:
+            self.renderer.encoded_scene = self.settings.colour_space == "srgb"
+            self.scene.colour_space = self.settings.colour_space
+            count = now - self._last_count >= COUNT_EVERY_S
+            t0 = time.perf_counter()
+            self.renderer.draw(camera, lens, self.settings.render, count=count, sort=False)
+            self.ctx.finish()
+            self.splat_draws += 1
+            self.render_ms = (time.perf_counter() - t0) * 1e3
+            if count:
+                self._last_count = now
+            self._drawn_key = state
+        self.ctx.screen.use()
+        self.ctx.viewport = (0, 0, *self.window.framebuffer_size)
+        self.ctx.clear(0.08, 0.08, 0.09)
+        w, h = camera.width, camera.height
+        fh = self.window.framebuffer_size[1]
+        self.renderer.tonemap_to(self.ctx.screen, (0, fh - h, w, h), self.settings.tonemap(), self.settings.focus_aid)
+        for path in self.capture_requests:
+            self._write_screen(path, (0, fh - h, w, h))
+        self.capture_requests.clear()
+
+    def _write_screen(self, path: Path, viewport: tuple[int, int, int, int]) -> None:
+        from ..png import write_png
+
+        w, h = viewport[2], viewport[3]
+        data = np.frombuffer(self.ctx.screen.read(viewport=viewport, components=3), np.uint8).reshape(h, w, 3)
+        write_png(path, data[::-1])
+
+    @property
+    def busy(self) -> bool:
+        """Work in flight that will change the image: a load, a sort or a focus pull."""
+        return self.loading is not None or self.sorter.pending or self.pull.active
+
+    @property
+    def settled(self) -> bool:
+        """The image shows the current state with the order sorted for the current view."""
+        return not self.busy and self._order_key == self._sort_key and self._drawn_key is not None
+
+    def frame(self) -> None:
+        """Run one frame: events already polled by the caller."""
+        now = time.perf_counter()
+        self.frame_ms.append((now - self._last_frame) * 1e3)
+        self._last_frame = now
+        self._take_results()
+        self.window.begin_frame()
+        self.handle_input(self)
+        self._render(now)
+        draw_ui(self)
+        self.window.end_frame()
+        fw, fh = self.window.framebuffer_size
+        for path in self.screenshot_requests:
+            self._write_screen(path, (0, 0, fw, fh))
+        self.screenshot_requests.clear()
+        self.window.swap()
+        self.frames += 1
+
+    def report(self) -> dict:
+        """The state as plain data (the script's ``report`` action writes it as JSON)."""
+        camera = self.camera()
+        lens = self.lens(camera)
+        tm = self.settings.tonemap()
+        rs = self.settings.render
+        return {
+            "scene": str(self.scene_path), "count": self.scene.count, "generation": self.generation,
+            "camera": {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
+                       "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist(),
+                       "name": camera.name},
+            "lens": {"focus": lens.focus, "aperture": lens.aperture},
+            "tonemap": {"exposure": tm.exposure, "gamma": tm.gamma, "background": list(tm.background)},
+            "render": {"tau": rs.tau, "k": rs.k, "opacity_norm": rs.opacity_norm, "blend_linear": rs.blend_linear,
+                       "near": rs.near},
+            "colour_space": self.settings.colour_space, "focus_aid": self.settings.focus_aid,
+            "focus_pull_target": self.pull.target, "pivot": self.controls.pivot.tolist(),
+            "show_help": self.show_help, "fly_mode": self.fly_mode,
+            "drawn": self.renderer.stats.drawn, "total": self.renderer.stats.total,
+            "sort_ms": self.renderer.stats.sort_ms, "frames": self.frames,
+            "message": self.message, "error": self.error, "command": self.command_line(),
+            "clipboard": self.window.clipboard(), "sort_requests": self.sort_requests,
+            "splat_draws": self.splat_draws,
+        }
+
+    def close(self) -> None:
+        self.sorter.close()
+        self.renderer.release()
+
+    def with_render(self, **changes) -> None:
+        """Change splatting settings (tau, k, opacity_norm, blend_linear, near)."""
+        self.settings.render = replace(self.settings.render, **changes)

@@ -1,0 +1,183 @@
+"""The benchmark: metrics, fragment estimate, and the structure of a --quick run's outputs.
+
+Never wall-clock values: only the files, their columns and rows, and the errors' ordering.
+"""
+
+import csv
+import math
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dofview.cli import main
+from dofview.metrics import log_radiance_error, psnr, ssim
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+
+
+# ---- metrics -------------------------------------------------------------------------------------------
+def test_psnr_and_ssim_of_identical_images():
+    img = np.random.default_rng(0).uniform(size=(20, 24, 3))
+    assert psnr(img, img) == math.inf
+    assert ssim(img, img) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_psnr_of_a_known_error():
+    a = np.zeros((8, 8))
+    assert psnr(a + 0.1, a) == pytest.approx(20.0)  # MSE 0.01 → 20 dB at peak 1
+
+
+def test_ssim_falls_with_noise_and_ignores_nothing():
+    rng = np.random.default_rng(1)
+    img = np.clip(np.cumsum(rng.normal(size=(40, 40)), axis=1) * 0.05 + 0.5, 0, 1)
+    scores = [ssim(np.clip(img + rng.normal(scale=s, size=img.shape), 0, 1), img) for s in (0.01, 0.05, 0.2)]
+    assert 1.0 > scores[0] > scores[1] > scores[2] > 0.0
+    # a uniform brightness shift keeps the structure but not the luminance term
+    assert 0.5 < ssim(np.clip(img + 0.1, 0, 1), img) < 1.0
+    # symmetric
+    b = np.clip(img + rng.normal(scale=0.05, size=img.shape), 0, 1)
+    assert ssim(img, b) == pytest.approx(ssim(b, img))
+
+
+def test_ssim_window_matches_a_direct_sum():
+    """The separable 'valid' filter equals the 2D Gaussian-weighted sum at one position."""
+    from dofview.metrics import _filter_valid, _gaussian_window
+
+    rng = np.random.default_rng(2)
+    img = rng.uniform(size=(15, 13))
+    w = _gaussian_window()
+    out = _filter_valid(img, w)
+    assert out.shape == (5, 3)
+    assert out[2, 1] == pytest.approx(float((np.outer(w, w) * img[2:13, 1:12]).sum()))
+
+
+def test_log_radiance_error_counts_stops():
+    a = np.full((4, 4, 3), 10.0)
+    assert log_radiance_error(2 * a, a, floor=0.0) == pytest.approx(1.0)
+    assert log_radiance_error(a, a) == 0.0
+
+
+# ---- fragment estimate against the shader's own counter ---------------------------------------------------
+def test_quad_fragment_estimate_draws_what_the_shader_draws():
+    from dofview.bench import quad_fragments
+    from dofview.camera import load_cameras_json
+    from dofview.frame import RenderSettings
+    from dofview.lens import Lens
+    from dofview.renderer import Renderer
+    from dofview.scenefile import load_scene
+
+    scene = load_scene(SAMPLES / "cards.ply", progress=False)
+    cam = load_cameras_json(SAMPLES / "cards_cameras.json")[0].resized(80, 60)
+    r = Renderer(scene)
+    quads = {}
+    for a, tau in ((0.0, 0.0), (60.0, 0.0), (60.0, 2 / 255)):
+        st = RenderSettings(tau=tau)
+        r.draw(cam, Lens(4.0, a), st, count=True)
+        drawn, quad, ellipse = quad_fragments(scene, cam, Lens(4.0, a), st)
+        assert abs(drawn - r.stats.drawn) <= 0.002 * r.stats.drawn
+        assert 0 < ellipse < quad
+        quads[(a, tau)] = quad
+    # blur grows the quads; τ > 0 tightens them again
+    assert quads[(60.0, 0.0)] > quads[(60.0, 2 / 255)] and quads[(60.0, 0.0)] > quads[(0.0, 0.0)]
+    r.release()
+
+
+# ---- a quick run ------------------------------------------------------------------------------------------
+def _rows(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return struct.unpack(">II", data[16:24])
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("bench") / "cards"
+    # the last accumulation count equals the reference's: it must reproduce the reference exactly
+    rc = main(["bench", str(SAMPLES / "cards.ply"), "--quick", "--out", str(out), "--focus", "2,auto",
+               "--acc-samples", "2,4,16,64"])
+    assert rc == 0
+    return out
+
+
+def test_quick_run_writes_every_output(quick_run):
+    for name in ("timing.csv", "error.csv", "scaling.csv", "report.md"):
+        assert (quick_run / name).stat().st_size > 0
+    for name in ("bench_speed_error.png", "bench_ratios.png", "bench_scaling.png"):
+        w, h = _png_size(quick_run / name)
+        assert w > 100 and h > 100
+    report = (quick_run / "report.md").read_text()
+    for heading in ("## Frame time, A × τ", "## Targets", "## Error against the thin-lens reference",
+                    "### k × opacity normalisation", "### τ: error added", "### Blend colour space", "## Scaling"):
+        assert heading in report
+    assert not list(quick_run.glob(".*.part"))  # nothing half-written left behind
+
+
+def test_timing_table_has_every_setting(quick_run):
+    from dofview.bench import QUICK
+
+    rows = _rows(quick_run / "timing.csv")
+    for col in ("wall_med_ms", "wall_p90_ms", "gpu_med_ms", "gpu_p90_ms", "sort_ms", "drawn", "quad_fragments"):
+        assert col in rows[0]
+    grid = {(float(r["aperture"]), float(r["tau_255"])) for r in rows if r["focus"] == rows[0]["focus"]}
+    assert {(a, round(t * 255, 3)) for a in QUICK["grid_apertures"] for t in QUICK["taus"]} <= grid
+    for r in rows:
+        assert float(r["wall_p90_ms"]) >= float(r["wall_med_ms"]) > 0
+    assert len({r["focus"] for r in rows}) == 2  # both focus distances timed
+
+
+def test_errors_fall_with_accumulation_samples(quick_run):
+    rows = _rows(quick_run / "error.csv")
+    for focus in {r["focus"] for r in rows}:
+        acc = sorted(((int(r["samples"]), float(r["psnr_physical"]), float(r["ssim_physical"]))
+                      for r in rows if r["method"] == "accumulation" and r["focus"] == focus))
+        assert [n for n, _, _ in acc] == [2, 4, 16, 64]
+        psnrs = [p for _, p, _ in acc]
+        assert psnrs[0] < psnrs[1] < psnrs[2]
+        assert acc[0][2] < acc[2][2]
+        assert psnrs[3] == math.inf  # 64 samples = the reference's own samples
+        single = [r for r in rows if r["method"] == "single-pass" and r["focus"] == focus]
+        assert single and all(0 < float(r["psnr"]) < math.inf and 0 < float(r["ssim"]) <= 1 for r in single)
+        # the time of n samples is n pinhole frames
+        t = {n: float(r["time_ms"]) for r in rows if r["method"] == "accumulation" and r["focus"] == focus
+             for n in [int(r["samples"])]}
+        assert t[4] == pytest.approx(2 * t[2], rel=1e-4)
+
+
+def test_scaling_rows(quick_run):
+    from dofview.bench import QUICK
+
+    rows = _rows(quick_run / "scaling.csv")
+    counts = sorted({int(r["gaussians"]) for r in rows if r["kind"] == "gaussians"})
+    assert counts == sorted(QUICK["counts"])
+    widths = sorted({int(r["width"]) for r in rows if r["kind"] == "resolution"})
+    assert widths == sorted(QUICK["widths"])
+    big = [float(r["quad_fragments"]) for r in rows if r["kind"] == "resolution" and float(r["aperture"]) == 0]
+    assert big[0] < big[-1]  # more pixels, more fragments
+
+
+def test_hdr_scene_gets_a_log_radiance_error(tmp_path):
+    out = tmp_path / "lamp"
+    rc = main(["bench", str(SAMPLES / "lamp.ply"), "--quick", "--no-scaling", "--out", str(out),
+               "--ks", "0.25", "--norms", "energy", "--taus", "0,2/255", "--acc-samples", "2,8"])
+    assert rc == 0
+    rows = _rows(out / "error.csv")
+    assert all(math.isfinite(float(r["log_radiance_physical"])) for r in rows)
+    assert not (out / "scaling.csv").exists()
+    assert "log-rad" in (out / "report.md").read_text()
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
+    rc = main(["bench", str(tmp_path / "missing.ply"), "--quick", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith("dofview: error:") and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(SystemExit) as e:
+        main(["bench", str(SAMPLES / "cards.ply"), "--apertures", "ten"])
+    assert e.value.code == 2
