@@ -53,11 +53,16 @@ class Frame:
         rgba: (H, W, 4) float32 linear RGB premultiplied by alpha (over black), alpha = coverage.
         depth: (H, W) float32 α-weighted mean camera z of the splats, scene units; 0 where α = 0.
         encoded: True when the scene blends display-encoded colours (standard sRGB 3DGS).
+        focus_depth: (H, W) float32 1 / (α-weighted mean of 1/z), scene units, 0 where α = 0, or
+            None. The CoC is linear in 1/z, so this is the focus that makes a pixel sharpest in the
+            least-squares sense, and a far background seen through gaps barely pulls it (the mean
+            depth is pulled by its full distance). Focusing uses it when present.
     """
 
     rgba: np.ndarray
     depth: np.ndarray
     encoded: bool
+    focus_depth: np.ndarray | None = None
 
     @property
     def alpha(self) -> np.ndarray:

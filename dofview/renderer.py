@@ -190,25 +190,10 @@ class Renderer:
         rgba = np.array(colour, dtype=np.float32)
         if self._encoded:
             rgba[..., :3] = decode(rgba[..., :3])
-        return Frame(rgba=rgba, depth=depth_from_weighted(depth[..., 0], depth[..., 3]), encoded=self._encoded)
-
-    def focus_depth_at(self, x: float, y: float) -> float | None:
-        """Click-to-focus depth (scene units) at pixel (x, y) of the last draw (top-left origin).
-
-        The inverse of the α-weighted mean of 1/z: the CoC is linear in 1/z, so this is the focus
-        that makes the pixel's contributions sharpest in the least-squares sense, and a far
-        background seen through gaps barely pulls it (the mean depth is pulled by its full distance).
-        Median over focus.depth_at's window of well-covered pixels; None over empty space.
-        """
-        from .focus import depth_at
-
-        w, h = self._size
-        d = np.frombuffer(self.depth_tex.read(), np.float32).reshape(h, w, 4)[::-1]
-        inv = depth_from_weighted(d[..., 1], d[..., 3])
-        rgba = np.zeros((h, w, 4), np.float32)
-        rgba[..., 3] = d[..., 3]
-        depth = np.where(inv > 0, 1.0 / np.maximum(inv, 1e-30), 0.0).astype(np.float32)
-        return depth_at(Frame(rgba=rgba, depth=depth, encoded=False), x, y)
+        inv = depth_from_weighted(depth[..., 1], depth[..., 3])
+        focus = np.where(inv > 0, 1.0 / np.maximum(inv, 1e-30), 0.0).astype(np.float32)
+        return Frame(rgba=rgba, depth=depth_from_weighted(depth[..., 0], depth[..., 3]), encoded=self._encoded,
+                     focus_depth=focus)
 
     def render(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings()) -> Frame:
         """Draw and read back: the one-call API for the CLI, benchmarks and tests."""

@@ -1,12 +1,8 @@
 import numpy as np
 import pytest
 
+from dofview.metrics import psnr  # noqa: F401  (tests import it from here)
 from dofview.scene import GaussianScene
-
-
-def psnr(a: np.ndarray, b: np.ndarray, peak: float = 1.0) -> float:
-    mse = float(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(peak * peak / mse)
 
 
 def random_scene(n: int = 1500, degree: int = 0, seed: int = 0, colour_space: str = "srgb") -> GaussianScene:

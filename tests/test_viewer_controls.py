@@ -190,7 +190,8 @@ def test_script_is_checked_up_front(tmp_path):
 
 @pytest.mark.parametrize("width", [390, 800])
 def test_click_to_focus_depth_on_the_cards(width):
-    """Renderer.focus_depth_at (what a click uses) lands within 5% of each card's depth, headless.
+    """focus.depth_at on the renderer's frame (what a click uses) lands within 5% of each card's
+    depth, headless.
 
     The cards' texel discs leave ~1-5% gaps onto the wall at depth 14, so the α-weighted mean
     depth is pulled several % (more at higher resolution); the α-weighted inverse depth is not.
@@ -198,6 +199,7 @@ def test_click_to_focus_depth_on_the_cards(width):
     from pathlib import Path
 
     from dofview.camera import load_cameras_json
+    from dofview.focus import depth_at
     from dofview.lens import Lens
     from dofview.renderer import Renderer
     from dofview.scenefile import load_scene
@@ -207,11 +209,11 @@ def test_click_to_focus_depth_on_the_cards(width):
     view = load_cameras_json(samples / "cards_cameras.json")[0]
     camera = view.resized(width, width * 3 // 4)
     renderer = Renderer(load_scene(samples / "cards.ply", progress=False))
-    renderer.draw(camera, Lens(1.0, 0.0))
+    frame = renderer.render(camera, Lens(1.0, 0.0))
     for card in CARDS:
         x0, y0, x1, y1 = card.pixel_box(camera)
         for fx, fy in [(0.5, 0.5), (0.3, 0.7), (0.8, 0.2)]:
-            depth = renderer.focus_depth_at(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))
+            depth = depth_at(frame, x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))
             assert depth == pytest.approx(card.depth, rel=0.05)
-    assert renderer.focus_depth_at(-50, -50) is None  # outside the image: nothing to focus on
+    assert depth_at(frame, -50, -50) is None  # outside the image: nothing to focus on
     renderer.release()

@@ -10,7 +10,6 @@ HDR EXR (``hdr_path``) for evaluation instead of a photo.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import DofviewError
+from ..jsonfile import read_json
 from ..lens import Lens, PhysicalLens, exposure_from_shutter
 from .exif import read_exif
 
@@ -119,12 +119,7 @@ def load_dataset(path: str | Path) -> Dataset:
     """Read a dataset folder (or its transforms.json) and every training photo's settings."""
     path = Path(path)
     file = path / "transforms.json" if path.is_dir() else path
-    try:
-        top = json.loads(file.read_text())
-    except OSError as e:
-        raise DofviewError(f"{file}: cannot read dataset ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise DofviewError(f"{file}: not valid JSON ({e})") from None
+    top = read_json(file, "dataset")
     if not isinstance(top, dict) or not isinstance(top.get("frames"), list):
         raise DofviewError(f"{file}: expected an object with a 'frames' list")
     root = file.parent

@@ -20,7 +20,7 @@ import numpy as np
 from ..camera import Camera, framing_camera, load_cameras_json
 from ..cli import render_command_line, save_render
 from ..errors import DofviewError
-from ..focus import auto_focus
+from ..focus import auto_focus, depth_at
 from ..lens import Lens
 from ..renderer import Renderer
 from ..scene import GaussianScene
@@ -191,7 +191,7 @@ class Viewer:
         the renderer's α-weighted inverse depth of a pinhole pass (a blurred pass would mix objects)."""
         camera = self.camera()
         self.renderer.draw(camera, Lens(self.settings.focus, 0.0), self.settings.render, sort=False)
-        depth = self.renderer.focus_depth_at(x, y)
+        depth = depth_at(self.renderer.read(), x, y)
         self._drawn_key = None  # the targets now hold the pinhole pass
         return depth
 
