@@ -11,3 +11,13 @@ class DofviewError(Exception):
 
 class DofviewWarning(UserWarning):
     """Something in the input was repaired or dropped (e.g. Gaussians with NaN values)."""
+
+
+class BackendUnavailable(DofviewError):
+    """This GL cannot run the renderer backend asked for (a missing feature or limit); the message
+    says what is missing. ``raster="auto"`` catches it and tries the next backend."""
+
+
+class SceneFormatError(DofviewError):
+    """A scene file that is not what its name says (truncated, corrupt, unsupported version); the
+    message names the path and what is wrong."""

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-from .errors import DofviewError
-from .tonemap import Tonemap, display, to_uint8
+from dofview.errors import DofviewError
+from dofview.tonemap import Tonemap, display, to_uint8
 
 OPACITY_NORMS: tuple[str, ...] = ("none", "energy", "optical-depth")
 
@@ -57,12 +58,14 @@ class Frame:
             None. The CoC is linear in 1/z, so this is the focus that makes a pixel sharpest in the
             least-squares sense, and a far background seen through gaps barely pulls it (the mean
             depth is pulled by its full distance). Focusing uses it when present.
+        meta: attributes written into the EXR header (camera, lens, settings; see api.exr_header).
     """
 
     rgba: np.ndarray
     depth: np.ndarray
     encoded: bool
     focus_depth: np.ndarray | None = None
+    meta: dict[str, object] = field(default_factory=dict)
 
     @property
     def alpha(self) -> np.ndarray:
@@ -71,6 +74,21 @@ class Frame:
     def display(self, tm: Tonemap | None = None) -> np.ndarray:
         """(H, W, 3) uint8 display image."""
         return to_uint8(display(self.rgba, self.encoded, tm or Tonemap()))
+
+    def save_exr(self, path: str | Path, *, exposure: float = 1.0, half: bool = False) -> None:
+        """Write R, G, B, A (linear, premultiplied, × ``exposure``; float32 or half) and Z (float32)
+        with :attr:`meta` in the header; whole or not at all."""
+        from dofview.io.exr import write_exr
+
+        rgba = self.rgba.copy()
+        rgba[..., :3] *= exposure
+        write_exr(path, rgba, self.depth, half=half, header=self.meta)
+
+    def save_png(self, path: str | Path, tm: Tonemap | None = None) -> None:
+        """Write the display image (tone mapped with ``tm``, default 0 EV, γ 2.2) as an 8-bit PNG."""
+        from dofview.io.png import write_png
+
+        write_png(path, self.display(tm))
 
 
 def depth_from_weighted(weighted: np.ndarray, alpha: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DofviewError
+from dofview.errors import DofviewError
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ def exposure_from_shutter(t: float, fnumber: float) -> float:
 
 # ---- the per-Gaussian lens math, written once for numpy arrays and torch tensors alike ----------
 # (only arithmetic and the array's own sqrt/exp/log, so the CPU reference and the trainer share
-# it; shaders/splat.vert is its GPU twin, held equal by the GL-vs-reference tests)
+# it; rendering/glsl/quads.vert is its GPU twin, held equal by the GL-vs-reference tests)
 LOW_PASS = 0.3  # px², the reference rasteriser's screen-space low-pass filter
 ALPHA_MAX = 0.99
 

@@ -8,9 +8,9 @@ lamp.ply: linear HDR, SH degree 3, a room with a lamp bulb ≥ 100× brighter th
 
 from pathlib import Path
 
-from dofview import synth
-from dofview.camera import save_cameras_json
-from dofview.scenefile import save_scene
+from dofview.bench import synth
+from dofview.io import save_scene
+from dofview.io.cameras import save_cameras_json
 
 HERE = Path(__file__).resolve().parent
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from dofview.metrics import psnr  # noqa: F401  (tests import it from here)
+from dofview.bench.metrics import psnr  # noqa: F401  (tests import it from here
 from dofview.scene import GaussianScene
 
 

@@ -20,16 +20,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import dofview.exr
 from conftest import random_scene
-from dofview.camera import look_at, save_cameras_json
+
+import dofview.io.exr
+from dofview.camera import look_at
 from dofview.cli import main
 from dofview.errors import DofviewError, DofviewWarning
-from dofview.exr import read_exr
+from dofview.io.cameras import save_cameras_json
+from dofview.io.exr import read_exr
+from dofview.io.ply import read_ply, scene_rows, write_ply
 from dofview.lens import Lens
-from dofview.ply import read_ply, scene_rows, write_ply
-from dofview.renderer import Renderer
+from dofview.rendering.quads import QuadBackend
 
 VIEW = ["--width", "24", "--height", "16", "--focus", "5"]
 DOFVIEW = str(Path(sys.executable).with_name("dofview"))
@@ -226,7 +227,7 @@ def test_nan_and_inf_gaussians_are_dropped_with_one_warning_and_the_rest_render(
         f"dofview: warning: {path}: dropped 6 of 80 Gaussians with NaN or infinite values"]
     assert "Traceback" not in err and "warnings.warn" not in err
     channels, _ = read_exr(tmp_path / "x.exr")
-    clean = Renderer(scene.subset(keep)).render(look_at([0, 0, 0], [0, 0, 5], 24, 16, 50), Lens(5.0, 0.0))
+    clean = QuadBackend(scene.subset(keep)).render(look_at([0, 0, 0], [0, 0, 5], 24, 16, 50), Lens(5.0, 0.0))
     for i, c in enumerate("RGBA"):
         np.testing.assert_array_equal(channels[c], clean.rgba[..., i])
 
@@ -334,7 +335,7 @@ def test_full_disk_simulated(tmp_path, capsys, good_ply, monkeypatch):
     out = tmp_path / "out"
     out.mkdir()
     (out / "x.exr").write_bytes(b"previous render")
-    monkeypatch.setattr(dofview.exr.OpenEXR, "File", _DiskFullExr)
+    monkeypatch.setattr(dofview.io.exr.OpenEXR, "File", _DiskFullExr)
     rc, err = run_cli(capsys, "render", good_ply, "-o", out / "x.exr", *VIEW)
     assert_one_line_error(rc, err, f"{out / 'x.exr'}:", "No space left on device", "nothing was written")
     assert_nothing_written(out, keep=["x.exr"])
@@ -365,7 +366,7 @@ def test_existing_output_is_replaced_only_when_complete(tmp_path, capsys, good_p
         Path(name).write_bytes(b"v/1\x01")
         raise KeyboardInterrupt
 
-    real = dofview.exr.OpenEXR.File
+    real = dofview.io.exr.OpenEXR.File
     with monkeypatch.context() as m:
         m.setattr(real, "write", interrupted)
         rc, err = run_cli(capsys, "render", good_ply, "-o", out, *VIEW)

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dofview.bench.metrics import log_radiance_error, psnr, ssim
 from dofview.cli import main
-from dofview.metrics import log_radiance_error, psnr, ssim
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 
@@ -43,7 +43,7 @@ def test_ssim_falls_with_noise_and_ignores_nothing():
 
 def test_ssim_window_matches_a_direct_sum():
     """The separable 'valid' filter equals the 2D Gaussian-weighted sum at one position."""
-    from dofview.metrics import _filter_valid, _gaussian_window
+    from dofview.bench.metrics import _filter_valid, _gaussian_window
 
     rng = np.random.default_rng(2)
     img = rng.uniform(size=(15, 13))
@@ -61,16 +61,16 @@ def test_log_radiance_error_counts_stops():
 
 # ---- fragment estimate against the shader's own counter ---------------------------------------------------
 def test_quad_fragment_estimate_draws_what_the_shader_draws():
-    from dofview.bench import quad_fragments
-    from dofview.camera import load_cameras_json
+    from dofview.bench.runner import quad_fragments
     from dofview.frame import RenderSettings
+    from dofview.io import load_scene
+    from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.renderer import Renderer
-    from dofview.scenefile import load_scene
+    from dofview.rendering.quads import QuadBackend
 
     scene = load_scene(SAMPLES / "cards.ply", progress=False)
     cam = load_cameras_json(SAMPLES / "cards_cameras.json")[0].resized(80, 60)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     quads = {}
     for a, tau in ((0.0, 0.0), (60.0, 0.0), (60.0, 2 / 255)):
         st = RenderSettings(tau=tau)
@@ -120,7 +120,7 @@ def test_quick_run_writes_every_output(quick_run):
 
 
 def test_timing_table_has_every_setting(quick_run):
-    from dofview.bench import QUICK
+    from dofview.bench.variants import QUICK
 
     rows = _rows(quick_run / "timing.csv")
     for col in ("wall_med_ms", "wall_p90_ms", "gpu_med_ms", "gpu_p90_ms", "sort_ms", "drawn", "quad_fragments"):
@@ -151,7 +151,7 @@ def test_errors_fall_with_accumulation_samples(quick_run):
 
 
 def test_scaling_rows(quick_run):
-    from dofview.bench import QUICK
+    from dofview.bench.variants import QUICK
 
     rows = _rows(quick_run / "scaling.csv")
     counts = sorted({int(r["gaussians"]) for r in rows if r["kind"] == "gaussians"})

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from dofview.camera import Camera, load_cameras_json, look_at, save_cameras_json, select_camera
+from dofview.camera import Camera, look_at
 from dofview.errors import DofviewError
+from dofview.io.cameras import load_cameras_json, save_cameras_json, select_camera
 
 
 def test_look_at_projects_target_to_centre_and_keeps_image_up():

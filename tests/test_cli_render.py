@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dofview import synth
+from dofview.bench import synth
 from dofview.cli import main
-from dofview.exr import read_exr
-from dofview.png import read_png
+from dofview.io.exr import read_exr
+from dofview.io.png import read_png
 from dofview.tonemap import Tonemap, display, to_uint8
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"

@@ -10,12 +10,12 @@ import warnings
 import numpy as np
 import plyfile
 import pytest
+from conftest import random_scene
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import random_scene
 from dofview.errors import DofviewError, DofviewWarning
-from dofview.ply import PLY_TYPES, REQUIRED, read_ply, scene_rows
+from dofview.io.ply import PLY_TYPES, REQUIRED, read_ply, scene_rows
 from dofview.scene import GaussianScene
 
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,

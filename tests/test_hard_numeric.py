@@ -9,19 +9,19 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import psnr, random_scene
+from test_renderer import assert_matches_reference
+
 from dofview.camera import look_at
 from dofview.errors import DofviewError
-from dofview.exr import HALF_MAX, read_exr
 from dofview.frame import RenderSettings
+from dofview.io.exr import HALF_MAX, read_exr
+from dofview.io.ply import read_ply, scene_rows, write_ply
+from dofview.io.png import read_png
 from dofview.lens import Lens, PhysicalLens
-from dofview.ply import read_ply, scene_rows, write_ply
-from dofview.png import read_png
-from dofview.reference import project, render_reference
-from dofview.renderer import Renderer
+from dofview.rendering.quads import QuadBackend
+from dofview.rendering.reference import project, render_reference
 from dofview.scene import SH_C0, GaussianScene
-from test_renderer import assert_matches_reference
 
 CAM = look_at([0, 0, 0], [0, 0, 5], 64, 48, 60)
 
@@ -46,7 +46,7 @@ def check(scene, lens=Lens(4.0, 0.0), settings=RenderSettings(), cam=CAM, packed
     depth check has nothing to hold, by PSNR ≥ 45 dB alone); with ``packed`` also the packed layout
     against float32 storage at the packing's own bar (PSNR ≥ 50 dB, test_packing.py). Returns the
     GL frame in the layout asked for."""
-    gl = Renderer(scene, packed=False).render(cam, lens, settings)
+    gl = QuadBackend(scene, packed=False).render(cam, lens, settings)
     ref = render_reference(scene, cam, lens, settings, margins=True)
     if ref[0].alpha.max() > 0.5:
         assert_matches_reference(gl, ref)
@@ -55,7 +55,7 @@ def check(scene, lens=Lens(4.0, 0.0), settings=RenderSettings(), cam=CAM, packed
         assert psnr(gl.rgba, ref[0].rgba, max(float(ref[0].rgba.max()), 1.0)) >= 45.0
     if not packed:
         return gl
-    small = Renderer(scene, packed=True).render(cam, lens, settings)
+    small = QuadBackend(scene, packed=True).render(cam, lens, settings)
     assert np.isfinite(small.rgba).all() and np.isfinite(small.depth).all()
     assert psnr(small.rgba, gl.rgba, max(float(gl.rgba.max()), 1.0)) >= 50.0
     return small
@@ -81,7 +81,7 @@ def test_gaussians_at_straddling_and_behind_the_near_plane(tau):
     scene = scene_of(np.r_[front, far], np.r_[np.full((60, 3), 0.02), np.full((150, 3), 0.15)], seed=3)
     settings = RenderSettings(tau=tau, near=near)
     gl = check(scene, Lens(2.0, 40.0), settings)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     r.draw(CAM, Lens(2.0, 0.0), settings, count=True)
     assert r.stats.drawn <= scene.count - 36  # the 36 at or behind the plane are never drawn
     assert gl.alpha.max() > 0.9
@@ -130,7 +130,7 @@ def test_zero_and_denormal_quaternions_are_the_identity(packed):
     scene = scene_of(means, np.array([0.15, 0.05, 0.05]), quats)
     identity = scene_of(means, np.array([0.15, 0.05, 0.05]))
     gl = check(scene, packed=packed)
-    np.testing.assert_array_equal(gl.rgba, Renderer(identity, packed=packed).render(CAM, Lens(4.0, 0.0)).rgba)
+    np.testing.assert_array_equal(gl.rgba, QuadBackend(identity, packed=packed).render(CAM, Lens(4.0, 0.0)).rgba)
 
 
 def test_opacity_logits_of_plus_minus_1e4_load_as_0_and_1(tmp_path):
@@ -184,7 +184,7 @@ def test_focus_at_infinity_is_the_limit_of_far_focus():
     assert lens.strength(1000.0, math.inf) == pytest.approx(lens.strength(1000.0, 1e12), rel=1e-9)
     means, q = cloud(200, seed=11)
     scene = scene_of(means, 0.08, q)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     at_inf = r.render(CAM, Lens(math.inf, 60.0))
     np.testing.assert_allclose(at_inf.rgba, r.render(CAM, Lens(1e12, 60.0)).rgba, atol=1e-6)
     check(scene, Lens(math.inf, 60.0))
@@ -197,7 +197,7 @@ def test_aperture_zero_is_bit_equal_to_the_pinhole_for_any_focus(settings):
     """Extends test_renderer's check to every setting and to focus distances whose inverse
     overflows float32 (1e-39: the uniform 1/d_f would be inf, and 0·inf a NaN blur)."""
     scene = random_scene(seed=12)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     pinhole = r.render(CAM, Lens(1.0, 0.0), settings)
     for focus in (1e-39, 1e-3, 1e30, math.inf):
         np.testing.assert_array_equal(r.render(CAM, Lens(focus, 0.0), settings).rgba, pinhole.rgba)
@@ -222,7 +222,7 @@ def test_huge_apertures_stay_finite_and_bounded_in_cost():
     rng = np.random.default_rng(13)
     scene = scene_of(means, np.exp(rng.uniform(math.log(0.02), math.log(0.5), (150, 1))), q,
                      opacities=rng.uniform(0.1, 1.0, 150))
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     settings = RenderSettings(tau=2 / 255)
     bound = _blend_bound(scene, settings)
     drawn = []
@@ -313,7 +313,7 @@ def test_many_gaussians_at_equal_depth_are_stable_between_frames():
     means = np.c_[rng.uniform(-0.5, 0.5, (300, 2)), np.full(300, 5.0)]
     scene = scene_of(means, 0.2, opacities=0.5, seed=15)
     first = check(scene, Lens(5.0, 0.0), RenderSettings(tau=0.0))
-    r = Renderer(scene, packed=False)
+    r = QuadBackend(scene, packed=False)
     a = r.render(CAM, Lens(5.0, 0.0), RenderSettings(tau=0.0))
     r.render(look_at([0.3, 0.1, 0], [0, 0, 5], 64, 48, 60), Lens(5.0, 0.0))
     b = r.render(CAM, Lens(5.0, 0.0), RenderSettings(tau=0.0))
@@ -324,7 +324,7 @@ def test_many_gaussians_at_equal_depth_are_stable_between_frames():
 # ---- empty, single, all culled ----------------------------------------------------------------------
 def test_empty_scene_renders_an_empty_image():
     empty = scene_of(np.zeros((0, 3)), 0.1)
-    assert_finite_and_empty(Renderer(empty).render(CAM, Lens(4.0, 50.0)))
+    assert_finite_and_empty(QuadBackend(empty).render(CAM, Lens(4.0, 50.0)))
     assert_finite_and_empty(render_reference(empty, CAM, Lens(4.0, 50.0)))
 
 
@@ -338,7 +338,7 @@ def test_all_gaussians_culled_give_an_empty_image():
     for scene, lens in ((scene_of(means * [1, 1, -1], 0.1, q), Lens(4.0, 0.0)),
                         (scene_of(means + [40.0, 0, 0], 0.1, q), Lens(4.0, 0.0)),
                         (scene_of(means, 0.05, q, opacities=0.5), Lens(0.5, 2000.0))):
-        r = Renderer(scene)
+        r = QuadBackend(scene)
         r.draw(CAM, lens, count=True)
         assert r.stats.drawn == 0
         assert_finite_and_empty(r.read())
@@ -356,7 +356,7 @@ def test_tiny_odd_and_very_wide_images(size):
 
 
 def test_size_above_the_gl_limit_is_a_clear_error():
-    r = Renderer(random_scene(n=10))
+    r = QuadBackend(random_scene(n=10))
     limit = min(r.ctx.info["GL_MAX_TEXTURE_SIZE"], *r.ctx.info["GL_MAX_VIEWPORT_DIMS"])
     for w, h in ((limit + 1, 4), (4, limit + 1)):
         with pytest.raises(DofviewError, match=f"{w}×{h} exceeds this OpenGL's limit of {limit}"):

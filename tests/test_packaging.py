@@ -19,6 +19,6 @@ def test_wheel_ships_the_shaders(tmp_path):
     assert p.returncode == 0, p.stderr[-2000:]
     wheel = next(tmp_path.glob("dofview-*.whl"))
     names = set(zipfile.ZipFile(wheel).namelist())
-    shaders = sorted(f.name for f in (ROOT / "shaders").iterdir() if f.is_file())
-    assert shaders and all(f"dofview/shaders/{s}" in names for s in shaders)
-    assert "dofview/renderer.py" in names
+    shaders = sorted(f.name for f in (ROOT / "dofview" / "rendering" / "glsl").iterdir() if f.is_file())
+    assert shaders and all(f"dofview/rendering/glsl/{s}" in names for s in shaders)
+    assert "dofview/rendering/quads.py" in names

@@ -2,19 +2,19 @@
 
 import numpy as np
 import pytest
-
 from conftest import psnr, random_scene
+
 from dofview.camera import look_at
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.packing import pack_core
-from dofview.renderer import Renderer
+from dofview.rendering.packing import pack_core
+from dofview.rendering.quads import QuadBackend
 
 CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 160, 120, 60)
 
 
 def unpack_core(words):
-    """numpy mirror of shaders/fetch_packed.glsl, for checking the packer itself."""
+    """numpy mirror of rendering/glsl/fetch_packed.glsl, for checking the packer itself."""
     mean = words[:, :3].view(np.float32)
     halves = lambda w: (w & 0xFFFF).astype(np.uint16).view(np.float16).astype(np.float32)
     scale = np.stack([halves(words[:, 3]), halves(words[:, 3] >> 16), halves(words[:, 4])], 1)
@@ -48,6 +48,6 @@ def test_packed_image_error_against_float32_storage(degree, aperture):
     """Issue 7: the packing's image error, PSNR ≥ 50 dB against full precision."""
     scene = random_scene(n=4000, degree=degree, seed=degree + 20)
     lens, settings = Lens(4.5, aperture), RenderSettings()
-    full = Renderer(scene, packed=False).render(CAM, lens, settings)
-    packed = Renderer(scene, packed=True).render(CAM, lens, settings)
+    full = QuadBackend(scene, packed=False).render(CAM, lens, settings)
+    packed = QuadBackend(scene, packed=True).render(CAM, lens, settings)
     assert psnr(packed.rgba, full.rgba) >= 50.0

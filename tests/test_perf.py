@@ -7,18 +7,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import psnr
-from dofview.camera import load_cameras_json, look_at
+
+from dofview.bench.perf import _with_hidden, measure_load_file, run
+from dofview.bench.synth import benchmark_camera, random_scene
+from dofview.camera import look_at
 from dofview.frame import RenderSettings
+from dofview.io.cameras import load_cameras_json
+from dofview.io.ply import read_ply, write_ply
 from dofview.lens import Lens
-from dofview.perf import _with_hidden, measure_load_file, run
-from dofview.ply import read_ply, write_ply
-from dofview import renderer as renderer_module
-from dofview.packing import gpu_arrays
-from dofview.renderer import Renderer
-from dofview.sort import camera_depths, front_to_back
-from dofview.synth import benchmark_camera, random_scene
+from dofview.rendering import base as renderer_module
+from dofview.rendering.packing import gpu_arrays
+from dofview.rendering.quads import QuadBackend
+from dofview.rendering.sort import camera_depths, front_to_back
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 
@@ -67,8 +68,8 @@ def test_packing_error_on_the_samples(sample, aperture):
     cam = load_cameras_json(SAMPLES / f"{sample}_cameras.json")[0].resized(160, 120)
     focus = float(np.median(camera_depths(scene.means, cam)))
     lens, settings = Lens(focus, aperture), RenderSettings()
-    full = Renderer(scene, packed=False).render(cam, lens, settings)
-    packed = Renderer(scene, packed=True).render(cam, lens, settings)
+    full = QuadBackend(scene, packed=False).render(cam, lens, settings)
+    packed = QuadBackend(scene, packed=True).render(cam, lens, settings)
     assert full.alpha.mean() > 0.5  # the view shows the scene
     assert psnr(packed.rgba, full.rgba, max(1.0, float(full.rgba.max()))) >= 50.0
 
@@ -76,7 +77,7 @@ def test_packing_error_on_the_samples(sample, aperture):
 def test_gpu_bytes_per_gaussian():
     """≤ 128 B per Gaussian at SH degree 3 (order buffer included); degree 0 carries no SH storage."""
     for degree, most in ((3, 128), (0, 36)):
-        r = Renderer(random_scene(1000, degree=degree, seed=2))
+        r = QuadBackend(random_scene(1000, degree=degree, seed=2))
         assert r.bytes_per_gaussian <= most
         assert (2 in r._buffers) == (degree > 0)
         r.release()
@@ -89,7 +90,7 @@ def test_chunked_upload_writes_exactly_the_packed_arrays(monkeypatch, n, degree,
     byte for byte what packing the whole scene at once gives, odd counts and SH padding included."""
     monkeypatch.setattr(renderer_module, "UPLOAD_CHUNK", 1000)
     scene = random_scene(n, degree=degree, seed=n)
-    r = Renderer(scene, packed=packed)
+    r = QuadBackend(scene, packed=packed)
     for binding, a in gpu_arrays(scene, packed).items():
         assert r._buffers[binding].read() == np.ascontiguousarray(a).tobytes()
     assert set(r._buffers) == set(gpu_arrays(scene, packed))
@@ -101,12 +102,12 @@ def test_hidden_gaussians_are_culled_and_change_nothing():
     visible = random_scene(3000, degree=1, seed=3)
     cam = benchmark_camera(160, 90)
     lens = Lens(6.0, 60.0)
-    r = Renderer(visible)
+    r = QuadBackend(visible)
     r.draw(cam, lens, count=True)
     drawn, image = r.stats.drawn, r.read().rgba
     for where in ("frustum", "behind"):
         both = _with_hidden(visible, where)
-        r2 = Renderer(both)
+        r2 = QuadBackend(both)
         r2.draw(cam, lens, count=True)
         assert both.count == 2 * visible.count
         assert r2.stats.drawn == drawn
@@ -116,7 +117,7 @@ def test_hidden_gaussians_are_culled_and_change_nothing():
 
 def test_a_million_gaussians_render_headless():
     scene = random_scene(1_000_000, degree=3, seed=5)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     assert r.bytes_per_gaussian <= 128
     cam = benchmark_camera(160, 90)
     r.draw(cam, Lens(6.0, 100.0), count=True)
@@ -159,7 +160,7 @@ def test_perf_script_measurements_hang_together():
 
 def test_sorting_runs_off_the_viewers_ui_thread(monkeypatch):
     """The viewer's sort request returns while the sort itself is still running on another thread."""
-    from dofview.viewer import sorter
+    from dofview.rendering import sorter
 
     release, threads = threading.Event(), []
 

@@ -2,12 +2,12 @@
 
 import numpy as np
 import plyfile
-from numpy.lib.recfunctions import repack_fields
 import pytest
-
 from conftest import random_scene
+from numpy.lib.recfunctions import repack_fields
+
 from dofview.errors import DofviewError
-from dofview.ply import read_ply, scene_rows, write_ply
+from dofview.io.ply import read_ply, scene_rows, write_ply
 from dofview.scene import GaussianScene
 
 

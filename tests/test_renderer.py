@@ -2,14 +2,14 @@
 
 import numpy as np
 import pytest
+from conftest import assert_matches_reference, random_scene
 
-from conftest import assert_matches_reference, psnr, random_scene
-from dofview.accumulate import accumulate
 from dofview.camera import look_at
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.reference import render_reference
-from dofview.renderer import Renderer
+from dofview.rendering.accumulate import accumulate
+from dofview.rendering.quads import QuadBackend
+from dofview.rendering.reference import render_reference
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, display, to_uint8
 
@@ -26,7 +26,7 @@ def test_gl_matches_cpu_reference(degree, aperture, tau):
     scene = random_scene(degree=degree, seed=degree)
     settings = RenderSettings(tau=tau)
     lens = Lens(focus=4.5, aperture=aperture)
-    gl = Renderer(scene, packed=False).render(CAM, lens, settings)
+    gl = QuadBackend(scene, packed=False).render(CAM, lens, settings)
     ref = render_reference(scene, CAM, lens, settings, margins=True)
     assert_matches_reference(gl, ref)
 
@@ -37,14 +37,14 @@ def test_gl_matches_reference_for_every_option(norm, blend_linear):
     scene = random_scene(seed=7, colour_space="srgb")
     settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear)
     lens = Lens(focus=3.0, aperture=80.0)
-    assert_matches_reference(Renderer(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
+    assert_matches_reference(QuadBackend(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
 
 
 def test_linear_hdr_scene_matches_reference():
     scene = random_scene(seed=3, colour_space="linear")
     scene.sh_dc *= 40.0  # radiance far above 1
     lens = Lens(focus=6.0, aperture=50.0)
-    gl = Renderer(scene, packed=False).render(CAM, lens)
+    gl = QuadBackend(scene, packed=False).render(CAM, lens)
     ref = render_reference(scene, CAM, lens, margins=True)
     assert ref[0].rgba.max() > 10
     assert_matches_reference(gl, ref)
@@ -52,7 +52,7 @@ def test_linear_hdr_scene_matches_reference():
 
 def test_aperture_zero_is_the_pinhole_image_at_any_focus():
     scene = random_scene(seed=11)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     pinhole = r.render(CAM, Lens(focus=1.0, aperture=0.0))
     for focus in (0.5, 5.0, np.inf):
         again = r.render(CAM, Lens(focus=focus, aperture=0.0))
@@ -63,7 +63,7 @@ def test_focus_plane_stays_sharp_and_blur_grows_away_from_it():
     """Two small Gaussians at z = 3 and z = 6; focusing on one keeps it (nearly) as in the pinhole."""
     scene = GaussianScene(means=[[-0.6, 0, 3.0], [1.7, 0, 6.0]], quats=[[1, 0, 0, 0]] * 2,
                           scales=[[0.01] * 3] * 2, opacities=[0.9, 0.9], sh_dc=[[1, 1, 1]] * 2)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     cam = look_at([0, 0, 0], [0, 0, 1], 128, 64, 60)
     pin = r.render(cam, Lens(3.0, 0.0), RenderSettings(tau=0)).alpha
     near_focus = r.render(cam, Lens(3.0, 200.0), RenderSettings(tau=0)).alpha
@@ -80,7 +80,7 @@ def test_single_gaussian_blur_matches_thin_lens_second_moment():
     scene = GaussianScene(means=[[0.0, 0.0, 2.0]], quats=[[1, 0, 0, 0]], scales=[[0.01] * 3],
                           opacities=[0.3], sh_dc=[[1, 1, 1]])
     cam = look_at([0, 0, 0], [0, 0, 1], 97, 97, 60)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     settings = RenderSettings(tau=0.0)
     lens = Lens(focus=4.0, aperture=64.0)  # R = ½·64·|1/2 − 1/4| = 8 px
     single = r.render(cam, lens, settings).alpha
@@ -102,7 +102,7 @@ def test_single_gaussian_blur_matches_thin_lens_second_moment():
 
 def test_gpu_tonemap_matches_numpy():
     scene = random_scene(seed=5)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     for tm in (Tonemap(), Tonemap(exposure=4.0, gamma=2.2, background=(0.2, 0.5, 1.0)), Tonemap(exposure=0.3, gamma=1.0)):
         frame = r.render(CAM, Lens(4.0, 40.0))
         gpu = r.display_image(tm).astype(int)
@@ -114,7 +114,7 @@ def test_srgb_scene_at_zero_ev_reproduces_the_blend():
     """Exposure is applied in linear light: at 0 EV and γ = 2.2 an sRGB scene shows its trained
     (display-encoded) blend unchanged — gamma is not applied twice."""
     scene = random_scene(seed=6)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     r.draw(CAM, Lens(4.0, 0.0))
     blended = np.frombuffer(r.colour_tex.read(), np.float32).reshape(72, 96, 4)[::-1, :, :3]
     np.testing.assert_allclose(r.display_image(Tonemap()).astype(int), to_uint8(blended).astype(int), atol=1)
@@ -122,9 +122,9 @@ def test_srgb_scene_at_zero_ev_reproduces_the_blend():
 
 def test_lens_change_does_not_resort(monkeypatch):
     scene = random_scene(seed=2)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     calls = []
-    import dofview.renderer as mod
+    import dofview.rendering.quads as mod
 
     real = mod.front_to_back
     monkeypatch.setattr(mod, "front_to_back", lambda m, c: calls.append(1) or real(m, c))
@@ -137,7 +137,7 @@ def test_lens_change_does_not_resort(monkeypatch):
 
 def test_culling_counts_and_tau_culls_faint_blurred_gaussians():
     scene = random_scene(seed=4)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
     r.draw(CAM, Lens(4.5, 0.0), RenderSettings(tau=0.0), count=True)
     all_drawn = r.stats.drawn
     assert 0 < all_drawn <= scene.count
@@ -146,11 +146,11 @@ def test_culling_counts_and_tau_culls_faint_blurred_gaussians():
 
 
 def test_degree0_scene_has_no_sh_buffer_and_degree3_fits_128_bytes():
-    r0 = Renderer(random_scene(degree=0))
-    r3 = Renderer(random_scene(degree=3))
+    r0 = QuadBackend(random_scene(degree=0))
+    r3 = QuadBackend(random_scene(degree=3))
     assert 2 not in r0._buffers
     assert r0.bytes_per_gaussian == 32 + 4  # core + draw order
     assert r3._buffers[2].size == r3.scene.count * 15 * 3 * 2
     assert r3.bytes_per_gaussian <= 128
-    full = Renderer(random_scene(degree=3), packed=False)
+    full = QuadBackend(random_scene(degree=3), packed=False)
     assert full.bytes_per_gaussian == 14 * 4 + 45 * 4 + 4

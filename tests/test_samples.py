@@ -5,15 +5,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import assert_matches_reference, psnr
-from dofview import synth
-from dofview.camera import load_cameras_json
+
+from dofview.bench import synth
 from dofview.frame import RenderSettings
+from dofview.io import load_scene
+from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens
-from dofview.reference import render_reference
-from dofview.renderer import Renderer
-from dofview.scenefile import load_scene
+from dofview.rendering.quads import QuadBackend
+from dofview.rendering.reference import render_reference
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 FOCUS = {"cards": 4.0, "lamp": synth.LAMP_DEPTH}
@@ -55,7 +55,7 @@ def test_gl_matches_reference_on_samples(sample, aperture, tau):
     name, scene, cams = sample
     cam = cams[1].resized(120, 90)
     lens, settings = Lens(FOCUS[name], aperture), RenderSettings(tau=tau)
-    gl = Renderer(scene, packed=False).render(cam, lens, settings)
+    gl = QuadBackend(scene, packed=False).render(cam, lens, settings)
     ref = render_reference(scene, cam, lens, settings, margins=True)
     assert_matches_reference(gl, ref, max_near_cut=0.03)
     assert psnr(np.clip(gl.rgba, 0, 1), np.clip(ref[0].rgba, 0, 1)) >= 45.0
@@ -66,7 +66,7 @@ def test_three_focus_distances_move_the_sharp_plane():
     its box), in the canonical view of the cards sample."""
     scene = load_scene(SAMPLES / "cards.ply", progress=False)
     cam = load_cameras_json(SAMPLES / "cards_cameras.json")[0].resized(400, 300)
-    r = Renderer(scene)
+    r = QuadBackend(scene)
 
     def sharpness(img, box):
         x0, y0, x1, y1 = (int(round(v)) for v in box)

@@ -1,7 +1,12 @@
 import numpy as np
 
 from dofview.camera import look_at
-from dofview.sort import argsort_keys, camera_depths, depth_keys, front_to_back
+from dofview.rendering.sort import (
+    argsort_keys,
+    camera_depths,
+    depth_keys,
+    front_to_back,
+)
 
 
 def test_radix_order_equals_numpy_stable_sort_with_ties():

@@ -3,11 +3,11 @@ and clear errors for files that are not .splat."""
 
 import numpy as np
 import pytest
-
 from conftest import random_scene
+
 from dofview.errors import DofviewError
-from dofview.scenefile import load_scene, save_scene
-from dofview.splat import SPLAT_DTYPE, read_splat, write_splat
+from dofview.io import load_scene, save_scene
+from dofview.io.splat import SPLAT_DTYPE, read_splat, write_splat
 
 
 def test_round_trip_within_8_bit_precision(tmp_path):

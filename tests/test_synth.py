@@ -3,7 +3,7 @@ import time
 import numpy as np
 import pytest
 
-from dofview import synth
+from dofview.bench import synth
 from dofview.scene import GaussianScene
 
 ARRAYS = ("means", "quats", "scales", "opacities", "sh_dc", "sh_rest")

@@ -11,16 +11,16 @@ torch = pytest.importorskip("torch")
 from conftest import psnr, random_scene  # noqa: E402
 
 from dofview.camera import look_at  # noqa: E402
-from dofview.cli import main  # noqa: E402
 from dofview.errors import DofviewError  # noqa: E402
-from dofview.exr import read_exr  # noqa: E402
 from dofview.frame import RenderSettings  # noqa: E402
+from dofview.io import load_scene  # noqa: E402
+from dofview.io.exr import read_exr  # noqa: E402
+from dofview.io.png import read_png, write_png  # noqa: E402
 from dofview.lens import Lens  # noqa: E402
-from dofview.png import read_png, write_png  # noqa: E402
-from dofview.reference import sh_colour  # noqa: E402
-from dofview.renderer import Renderer  # noqa: E402
+from dofview.cli import main  # noqa: E402
+from dofview.rendering.quads import QuadBackend  # noqa: E402
+from dofview.rendering.reference import sh_colour  # noqa: E402
 from dofview.scene import SH_C0, GaussianScene  # noqa: E402
-from dofview.scenefile import load_scene  # noqa: E402
 from dofview.train.dataset import load_dataset  # noqa: E402
 from dofview.train.evaluate import evaluate  # noqa: E402
 from dofview.train.exif import read_exif  # noqa: E402
@@ -62,7 +62,7 @@ def test_forward_render_matches_gl(settings):
     scene = random_scene(400, colour_space="linear")
     cam = look_at((0.3, 0.1, 0.0), (0.0, 0.0, 5.0), 64, 48, 60.0)
     lens = Lens(focus=4.0, aperture=20.0)
-    gl = Renderer(scene).render(cam, lens, settings)
+    gl = QuadBackend(scene).render(cam, lens, settings)
     f = lambda a: torch.tensor(np.asarray(a, np.float32))  # noqa: E731
     colours = sh_colour(scene, cam.centre, np.arange(scene.count))
     r = rasterise(f(scene.means), f(scene.quats), f(scene.scales), f(scene.opacities), f(colours), cam, lens, settings)

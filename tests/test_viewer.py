@@ -17,13 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import psnr
-from dofview.camera import Camera, load_cameras_json
+
+from dofview.bench.synth import CARD_DEPTHS, CARDS
+from dofview.camera import Camera
 from dofview.frame import RenderSettings
+from dofview.io.cameras import load_cameras_json
+from dofview.io.png import read_png
 from dofview.lens import Lens
-from dofview.png import read_png
-from dofview.synth import CARD_DEPTHS, CARDS
 from dofview.tonemap import Tonemap
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -132,15 +133,15 @@ def session(display, tmp_path_factory):
 
 
 def headless_display(report: dict, focus_aid: bool = False) -> np.ndarray:
-    """The same view rendered by the headless Renderer and tonemapped by display_image."""
-    from dofview.renderer import Renderer
-    from dofview.scenefile import load_scene
+    """The same view rendered by the headless QuadBackend and tonemapped by display_image."""
+    from dofview.io import load_scene
+    from dofview.rendering.quads import QuadBackend
 
     c = report["camera"]
     camera = Camera(c["width"], c["height"], c["fx"], c["fy"], c["cx"], c["cy"], np.array(c["R"]), np.array(c["T"]))
     scene = load_scene(report["scene"], progress=False)
     scene.colour_space = report["colour_space"]
-    renderer = Renderer(scene)
+    renderer = QuadBackend(scene)
     renderer.draw(camera, Lens(**report["lens"]), RenderSettings(**report["render"]))
     t = report["tonemap"]
     image = renderer.display_image(Tonemap(t["exposure"], t["gamma"], tuple(t["background"])), focus_aid)
@@ -213,7 +214,7 @@ def test_lens_and_exposure_changes_do_not_sort(session):
 
 def test_save_writes_what_dofview_render_writes(session, tmp_path):
     from dofview.cli import main
-    from dofview.exr import read_exr
+    from dofview.io.exr import read_exr
 
     out, r = session
     channels, header = read_exr(out / "saved.exr")

@@ -9,16 +9,22 @@ import time
 
 import numpy as np
 import pytest
-
 from conftest import random_scene
+
 from dofview.camera import look_at
 from dofview.errors import DofviewError
 from dofview.lens import PhysicalLens
-from dofview.sort import front_to_back
-from dofview.viewer.controls import MIN_POLE_ANGLE, ORBIT_RAD_PER_PX, ZOOM_PER_STEP, ViewControls, rotation
+from dofview.rendering.sort import front_to_back
+from dofview.rendering.sorter import SortThread
+from dofview.viewer.controls import (
+    MIN_POLE_ANGLE,
+    ORBIT_RAD_PER_PX,
+    ZOOM_PER_STEP,
+    ViewControls,
+    rotation,
+)
 from dofview.viewer.script import load_script
 from dofview.viewer.settings import FOCUS_PULL_S, FocusPull, ViewerSettings
-from dofview.viewer.sorter import SortThread
 
 
 @pytest.fixture
@@ -198,17 +204,17 @@ def test_click_to_focus_depth_on_the_cards(width):
     """
     from pathlib import Path
 
-    from dofview.camera import load_cameras_json
-    from dofview.focus import depth_at
+    from dofview.bench.synth import CARDS
+    from dofview.io import load_scene
+    from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.renderer import Renderer
-    from dofview.scenefile import load_scene
-    from dofview.synth import CARDS
+    from dofview.rendering.focus import depth_at
+    from dofview.rendering.quads import QuadBackend
 
     samples = Path(__file__).resolve().parents[1] / "samples"
     view = load_cameras_json(samples / "cards_cameras.json")[0]
     camera = view.resized(width, width * 3 // 4)
-    renderer = Renderer(load_scene(samples / "cards.ply", progress=False))
+    renderer = QuadBackend(load_scene(samples / "cards.ply", progress=False))
     frame = renderer.render(camera, Lens(1.0, 0.0))
     for card in CARDS:
         x0, y0, x1, y1 = card.pixel_box(camera)

@@ -11,8 +11,8 @@ import json
 import sys
 from pathlib import Path
 
-from ..cli import _number, _vec3, load_scene_arg
-from ..errors import DofviewError
+from dofview.errors import DofviewError
+from dofview.options import load_scene_arg, number, vec3
 
 NO_TORCH = "dofview train needs torch: pip install 'dofview[train]' (a CPU build is enough)"
 
@@ -23,18 +23,18 @@ def add_parser(sub) -> None:
                                    "time, f-number and focus (Cinematic Gaussians); see docs/TRAINING.md.")
     p.add_argument("dataset", type=Path, help="dataset folder with transforms.json")
     p.add_argument("-o", "--output", type=Path, required=True, help="output .ply (linear HDR; sRGB for --variant ldr)")
-    p.add_argument("--iterations", type=_number(1, None, integer=True, what="iterations"), default=2000)
-    p.add_argument("--warmup", type=_number(0, None, integer=True, what="warm-up"), default=500,
+    p.add_argument("--iterations", type=number(1, None, integer=True, what="iterations"), default=2000)
+    p.add_argument("--warmup", type=number(0, None, integer=True, what="warm-up"), default=500,
                    help="exposure-aligned pinhole steps before tonemapping and depth of field (default 500)")
-    p.add_argument("--gaussians", type=_number(1, None, integer=True, what="initial Gaussians"), default=300,
+    p.add_argument("--gaussians", type=number(1, None, integer=True, what="initial Gaussians"), default=300,
                    help="initial random Gaussians (default 300)")
-    p.add_argument("--max-gaussians", type=_number(1, None, integer=True, what="max Gaussians"), default=1500)
+    p.add_argument("--max-gaussians", type=number(1, None, integer=True, what="max Gaussians"), default=1500)
     p.add_argument("--variant", choices=("full", "no-exp", "no-foc", "ldr"), default="full",
                    help="full model, ablations without L_exp / L_foc, or a plain LDR fit (default full)")
-    p.add_argument("--seed", type=_number(0, None, integer=True, what="seed"), default=0)
+    p.add_argument("--seed", type=number(0, None, integer=True, what="seed"), default=0)
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     p.add_argument("--checkpoint", type=Path, help="checkpoint file (default OUTPUT.ckpt)")
-    p.add_argument("--checkpoint-every", type=_number(0, None, integer=True, what="checkpoint interval"), default=500,
+    p.add_argument("--checkpoint-every", type=number(0, None, integer=True, what="checkpoint interval"), default=500,
                    help="steps between checkpoints, 0 = none (default 500)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
     p.add_argument("--log", type=Path, help="write the loss / Gaussian-count history as JSON")
@@ -47,20 +47,20 @@ def add_parser(sub) -> None:
     p.add_argument("scene", type=Path, help="scene (.ply or .splat)")
     p.add_argument("--colour-space", "--color-space", choices=("srgb", "linear"), help="override the scene's colour space")
     p.add_argument("-o", "--output", type=Path, required=True, help="new dataset folder")
-    p.add_argument("--views", type=_number(1, None, integer=True, what="views"), default=30)
-    p.add_argument("--held-out", type=_number(0, None, integer=True, what="held-out views"), default=8)
-    p.add_argument("--width", type=_number(8, None, integer=True, what="width"), default=64)
-    p.add_argument("--height", type=_number(8, None, integer=True, what="height"), default=48)
-    p.add_argument("--focal-mm", type=_number(0, None, lo_open=True, what="focal length"), default=50.0)
-    p.add_argument("--sensor-mm", type=_number(0, None, lo_open=True, what="sensor width"), default=36.0)
-    p.add_argument("--units-per-metre", type=_number(0, None, lo_open=True, what="units per metre"), default=10.0)
+    p.add_argument("--views", type=number(1, None, integer=True, what="views"), default=30)
+    p.add_argument("--held-out", type=number(0, None, integer=True, what="held-out views"), default=8)
+    p.add_argument("--width", type=number(8, None, integer=True, what="width"), default=64)
+    p.add_argument("--height", type=number(8, None, integer=True, what="height"), default=48)
+    p.add_argument("--focal-mm", type=number(0, None, lo_open=True, what="focal length"), default=50.0)
+    p.add_argument("--sensor-mm", type=number(0, None, lo_open=True, what="sensor width"), default=36.0)
+    p.add_argument("--units-per-metre", type=number(0, None, lo_open=True, what="units per metre"), default=10.0)
     p.add_argument("--ev-min", type=float, default=-10.0, help="lowest exposure, stops from mid-grey key (default -10)")
     p.add_argument("--ev-max", type=float, default=2.0, help="highest exposure, stops from the key (default 2)")
-    p.add_argument("--orbit", type=_number(0, 90, hi_open=False, what="orbit"), default=15.0,
+    p.add_argument("--orbit", type=number(0, 90, hi_open=False, what="orbit"), default=15.0,
                    help="cameras swing up to this many degrees of yaw (half of it in pitch) about the target")
-    p.add_argument("--eye", type=_vec3, help="base camera position x,y,z (default: a framing camera)")
-    p.add_argument("--target", type=_vec3, help="point the cameras look at x,y,z")
-    p.add_argument("--seed", type=_number(0, None, integer=True, what="seed"), default=0)
+    p.add_argument("--eye", type=vec3, help="base camera position x,y,z (default: a framing camera)")
+    p.add_argument("--target", type=vec3, help="point the cameras look at x,y,z")
+    p.add_argument("--seed", type=number(0, None, integer=True, what="seed"), default=0)
     p.set_defaults(run=run_make_dataset)
 
     p = sub.add_parser("train-eval", help="score trained scenes on a dataset's held-out HDR views",
@@ -81,10 +81,10 @@ def _torch() -> None:
 
 def run_train(args: argparse.Namespace) -> int:
     _torch()
-    from ..atomic import atomic_output
-    from ..ply import write_ply
-    from .dataset import load_dataset
-    from .optimise import TrainConfig, Trainer
+    from dofview.io.atomic import atomic_output
+    from dofview.io.ply import write_ply
+    from dofview.train.dataset import load_dataset
+    from dofview.train.optimise import TrainConfig, Trainer
 
     if args.output.suffix.lower() != ".ply":
         raise DofviewError(f"{args.output}: output must be a .ply file")
@@ -106,7 +106,7 @@ def run_train(args: argparse.Namespace) -> int:
                                        "history": trainer.history.rows}, indent=1))
     rows = trainer.history.rows
     if args.plot:
-        from .plot import plot_history
+        from dofview.train.plot import plot_history
 
         plot_history(rows, args.plot, f"dofview train {args.dataset.name} ({args.variant})")
     counts = " → ".join(str(r["gaussians"]) for r in rows[:: max(len(rows) // 6, 1)])
@@ -116,7 +116,7 @@ def run_train(args: argparse.Namespace) -> int:
 
 
 def run_make_dataset(args: argparse.Namespace) -> int:
-    from .generate import Capture, generate
+    from dofview.train.generate import Capture, generate
 
     capture = Capture(views=args.views, held_out=args.held_out, width=args.width, height=args.height,
                       focal_mm=args.focal_mm, sensor_mm=args.sensor_mm, units_per_metre=args.units_per_metre,
@@ -128,10 +128,10 @@ def run_make_dataset(args: argparse.Namespace) -> int:
 
 
 def run_eval(args: argparse.Namespace) -> int:
-    from ..scenefile import load_scene
-    from ..atomic import atomic_output
-    from .dataset import load_dataset
-    from .evaluate import evaluate
+    from dofview.io import load_scene
+    from dofview.io.atomic import atomic_output
+    from dofview.train.dataset import load_dataset
+    from dofview.train.evaluate import evaluate
 
     dataset = load_dataset(args.dataset)
     rows = []

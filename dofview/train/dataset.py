@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Camera
-from ..errors import DofviewError
-from ..jsonfile import read_json
-from ..lens import Lens, PhysicalLens, exposure_from_shutter
-from .exif import read_exif
+from dofview.camera import Camera
+from dofview.errors import DofviewError
+from dofview.io.jsonfile import read_json
+from dofview.lens import Lens, PhysicalLens, exposure_from_shutter
+from dofview.train.exif import read_exif
 
 SETTINGS = ("exposure_time", "f_number", "focus_distance", "focal_length_mm")
 
@@ -175,7 +175,7 @@ def load_dataset(path: str | Path) -> Dataset:
 
 def load_photo(shot: Shot) -> np.ndarray:
     """(H, W, 3) float32 pixel values in [0, 1] of an 8-bit PNG photo, checked against its camera."""
-    from ..png import read_png
+    from dofview.io.png import read_png
 
     try:
         img = read_png(shot.path)

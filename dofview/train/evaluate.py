@@ -21,12 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DofviewError
-from ..exr import read_exr
-from ..frame import RenderSettings
-from ..lens import Lens
-from ..scene import GaussianScene
-from .dataset import Dataset
+from dofview.errors import DofviewError
+from dofview.frame import RenderSettings
+from dofview.io.exr import read_exr
+from dofview.lens import Lens
+from dofview.scene import GaussianScene
+from dofview.train.dataset import Dataset
 
 LOG_FLOOR = 1e-4
 BRIGHT = 10.0
@@ -76,11 +76,11 @@ def render_radiance(scene: GaussianScene, dataset: Dataset, renderer) -> list[np
 
 def evaluate(scene: GaussianScene, dataset: Dataset) -> Evaluation:
     """Scores of ``scene`` on ``dataset``'s held-out views (needs at least one)."""
-    from ..renderer import Renderer
+    from dofview.rendering.quads import QuadBackend
 
     if not dataset.held_out:
         raise DofviewError(f"{dataset.root}: the dataset has no held-out views (split: test) to evaluate on")
-    renderer = Renderer(scene)
+    renderer = QuadBackend(scene)
     try:
         preds = render_radiance(scene, dataset, renderer)
     finally:

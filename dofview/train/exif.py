@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_output
-from ..errors import DofviewError
-from ..png import _chunk, encode_png
+from dofview.errors import DofviewError
+from dofview.io.atomic import atomic_output
+from dofview.io.png import _chunk, encode_png
 
 TAGS = {"exposure_time": 0x829A, "f_number": 0x829D, "focal_length_mm": 0x920A, "subject_distance_m": 0x9206}
 _EXIF_IFD = 0x8769

@@ -19,15 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Camera, framing_camera, look_at
-from ..errors import DofviewError
-from ..exr import write_exr
-from ..frame import RenderSettings
-from ..lens import Lens, PhysicalLens
-from ..progress import Progress
-from ..scene import GaussianScene
-from ..tonemap import Tonemap, display, to_uint8
-from .exif import write_png_exif
+from dofview.camera import Camera, framing_camera, look_at
+from dofview.errors import DofviewError
+from dofview.frame import RenderSettings
+from dofview.io.exr import write_exr
+from dofview.lens import Lens, PhysicalLens
+from dofview.progress import Progress
+from dofview.scene import GaussianScene
+from dofview.tonemap import Tonemap, display, to_uint8
+from dofview.train.exif import write_png_exif
 
 MID_GREY = 0.18
 
@@ -91,7 +91,7 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     The folder is built beside the target and renamed into place at the end, so a failure leaves
     nothing behind.
     """
-    from ..renderer import Renderer
+    from dofview.rendering.quads import QuadBackend
 
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -108,7 +108,7 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     eye, target = np.asarray(eye, np.float64), np.asarray(target, np.float64)
     rng = np.random.default_rng(capture.seed)
     angles = rng.uniform(-1, 1, (capture.views + capture.held_out, 2)) * [capture.orbit_deg, capture.orbit_deg / 2]
-    renderer = Renderer(scene)
+    renderer = QuadBackend(scene)
     tmp = out.parent / f".{out.name}.partial"
     shutil.rmtree(tmp, ignore_errors=True)
     (tmp / "images").mkdir(parents=True)

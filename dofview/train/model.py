@@ -12,8 +12,8 @@ import math
 import numpy as np
 import torch
 
-from ..scene import SH_C0, ColourSpace, GaussianScene
-from .dataset import Dataset
+from dofview.scene import SH_C0, ColourSpace, GaussianScene
+from dofview.train.dataset import Dataset
 
 PARAMS = ("means", "log_scales", "quats", "opacity_logits", "log_colours")
 MIN_COLOUR = 1e-4  # a floor for the log of an initial colour (black pixels)

@@ -20,15 +20,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..atomic import atomic_output
-from ..errors import DofviewError
-from ..frame import RenderSettings
-from ..lens import Lens
-from ..progress import Progress
-from .dataset import Dataset, load_photo
-from .losses import aligned_loss, delta, photo_loss, tonemap
-from .model import PARAMS, GaussianModel, initial_model
-from .raster import rasterise, rotations
+from dofview.errors import DofviewError
+from dofview.frame import RenderSettings
+from dofview.io.atomic import atomic_output
+from dofview.lens import Lens
+from dofview.progress import Progress
+from dofview.train.dataset import Dataset, load_photo
+from dofview.train.losses import aligned_loss, delta, photo_loss, tonemap
+from dofview.train.model import PARAMS, GaussianModel, initial_model
+from dofview.train.raster import rasterise, rotations
 
 VARIANTS = ("full", "no-exp", "no-foc", "ldr")
 # The trainer splats with τ = 0 (3σ support): a τ cut would hide faint Gaussians from the gradient.

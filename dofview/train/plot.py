@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..atomic import atomic_output
-from ..errors import DofviewError
+from dofview.errors import DofviewError
+from dofview.io.atomic import atomic_output
 
 
 def plot_history(rows: list[dict], path: str | Path, title: str = "") -> None:

@@ -1,6 +1,6 @@
 """Differentiable splatting in plain torch: the trainer's forward model (Cinematic Gaussians Eq. 4–6).
 
-It computes what ``shaders/splat.vert``/``splat.frag`` and ``reference.py`` compute — EWA
+It computes what ``rendering/glsl/quads.vert``/``quads.frag`` and ``reference.py`` compute — EWA
 projection with the clamped Jacobian, 0.3 px² low-pass, CoC aperture Gaussian k·R²·I, normalised
 opacity, α = min(0.99, o′·exp(−½ dᵀΣ⁻¹d)) cut at τ (or at 3σ when τ = 0), front-to-back
 compositing over black — with the lens terms taken from :mod:`dofview.lens` (one definition of
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import torch
 
-from ..camera import Camera
-from ..frame import RenderSettings
-from ..lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
+from dofview.camera import Camera
+from dofview.frame import RenderSettings
+from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
 
 TILE = 16
 
@@ -94,7 +94,7 @@ def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, op
     colour = colours[front[sel]]
     conic = torch.stack([syy / det, -sxy / det, sxx / det], 1)
     with torch.no_grad():
-        r2 = torch.clamp(2.0 * torch.log(o / tau), max=9.0) if tau > 0 else torch.full_like(o, 9.0)  # ≤ 3σ, as splat.vert
+        r2 = torch.clamp(2.0 * torch.log(o / tau), max=9.0) if tau > 0 else torch.full_like(o, 9.0)  # ≤ 3σ, as quads.vert
         ext = torch.sqrt(r2[:, None] * torch.stack([sxx, syy], 1))
         lo, hi = mean2d - ext, mean2d + ext
     rgb = torch.zeros(h, w, 3, dtype=dt, device=dev)

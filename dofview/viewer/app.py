@@ -10,7 +10,7 @@ DEFAULT_BLUR_AT_INFINITY_PX = 6.0  # without --aperture the viewer starts with v
 
 
 def add_parser(subparsers) -> None:
-    from ..cli import add_lens_args, add_scene_args, add_view_args
+    from dofview.options import add_lens_args, add_scene_args, add_view_args
 
     p = subparsers.add_parser(
         "view", help="open a scene in the interactive viewer",
@@ -26,8 +26,8 @@ def add_parser(subparsers) -> None:
 
 def _initial_settings(args: argparse.Namespace, scene_colour_space: str):
     """Panel values from the render options (lens values beyond these come with the focus)."""
-    from ..cli import settings_from_args, tonemap_from_args
-    from .settings import ViewerSettings
+    from dofview.options import settings_from_args, tonemap_from_args
+    from dofview.viewer.settings import ViewerSettings
 
     tm = tonemap_from_args(args)  # also refuses --shutter without --fnumber
     s = ViewerSettings(colour_space=scene_colour_space, render=settings_from_args(args), gamma=tm.gamma,
@@ -42,10 +42,10 @@ def _initial_settings(args: argparse.Namespace, scene_colour_space: str):
 
 
 def run_view(args: argparse.Namespace) -> int:
-    from ..camera import load_cameras_json
-    from ..cli import camera_from_args, lens_from_args, load_scene_arg
-    from .script import ScriptRunner, load_script
-    from .window import check_display
+    from dofview.io.cameras import load_cameras_json
+    from dofview.options import camera_from_args, lens_from_args, load_scene_arg
+    from dofview.viewer.script import ScriptRunner, load_script
+    from dofview.viewer.window import check_display
 
     check_display()
     actions = load_script(args.script) if args.script else None
@@ -54,8 +54,8 @@ def run_view(args: argparse.Namespace) -> int:
     settings = _initial_settings(args, scene.colour_space)
     start = camera_from_args(args, scene, DEFAULT_WINDOW)
 
-    from .viewer import Viewer
-    from .window import Window
+    from dofview.viewer.viewer import Viewer
+    from dofview.viewer.window import Window
 
     window = Window("dofview", args.width or DEFAULT_WINDOW[0], args.height or DEFAULT_WINDOW[1],
                     on_drop=lambda paths: viewer.open_file(paths[0]))

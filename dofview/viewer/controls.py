@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
+from dofview.camera import Camera
 
 ORBIT_RAD_PER_PX = 0.005
 LOOK_RAD_PER_PX = 0.003

@@ -6,12 +6,13 @@ alone. Mouse positions are in window units; the image is in framebuffer pixels (
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from imgui_bundle import imgui
 
-if TYPE_CHECKING:
-    from .viewer import Viewer
+from dofview.camera import Camera
+from dofview.viewer.controls import ViewControls
+from dofview.viewer.settings import ViewerSettings
 
 CLICK_SLOP_PX = 3.0  # a press that moves less than this (window units) is a click, not a drag
 FLY_FAST = 4.0  # speed factor with Shift held
@@ -35,13 +36,38 @@ HELP: tuple[tuple[str, str], ...] = (
 )
 
 
-def _over_image(viewer: "Viewer", x: float, y: float) -> bool:
+class _Window(Protocol):
+    pixel_ratio: float
+
+
+class ViewerActions(Protocol):
+    """What the input handler may read and do: the viewer implements it; input never imports the
+    viewer."""
+
+    window: _Window
+    controls: ViewControls
+    settings: ViewerSettings
+    fly_mode: bool
+    fly_speed: float
+    show_help: bool
+
+    @property
+    def image_size(self) -> tuple[int, int]: ...
+    def camera(self) -> Camera: ...
+    def focus_at(self, x: float, y: float) -> None: ...
+    def reset_view(self) -> None: ...
+    def step_view(self, step: int) -> None: ...
+    def save(self) -> None: ...
+    def copy_command(self) -> None: ...
+
+
+def _over_image(viewer: ViewerActions, x: float, y: float) -> bool:
     w, h = viewer.image_size
     r = viewer.window.pixel_ratio
     return 0 <= x * r < w and 0 <= y * r < h
 
 
-def _fly_keys(viewer: "Viewer", dt: float) -> None:
+def _fly_keys(viewer: ViewerActions, dt: float) -> None:
     def axis(plus, minus) -> float:
         return float(imgui.is_key_down(plus)) - float(imgui.is_key_down(minus))
 
@@ -57,7 +83,7 @@ class InputHandler:
         self.press: tuple[float, float] | None = None  # where a button went down on the image
         self.dragging = False
 
-    def __call__(self, viewer: "Viewer") -> None:
+    def __call__(self, viewer: ViewerActions) -> None:
         io = imgui.get_io()
         x, y = io.mouse_pos.x, io.mouse_pos.y
         if self.press is not None or (not io.want_capture_mouse and _over_image(viewer, x, y)):
@@ -65,7 +91,7 @@ class InputHandler:
         if not io.want_capture_keyboard:
             _keys(viewer, io, x, y)
 
-    def _mouse(self, viewer: "Viewer", io, x: float, y: float) -> None:
+    def _mouse(self, viewer: ViewerActions, io, x: float, y: float) -> None:
         r = viewer.window.pixel_ratio
         if self.press is None and any(imgui.is_mouse_clicked(b) for b in range(3)):
             self.press, self.dragging = (x, y), False
@@ -94,7 +120,7 @@ class InputHandler:
             self.press = None
 
 
-def _keys(viewer: "Viewer", io, x: float, y: float) -> None:
+def _keys(viewer: ViewerActions, io, x: float, y: float) -> None:
     r = viewer.window.pixel_ratio
     if viewer.fly_mode:
         _fly_keys(viewer, min(io.delta_time, 0.1))

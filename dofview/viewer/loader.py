@@ -8,9 +8,9 @@ import time
 import traceback
 from pathlib import Path
 
-from ..errors import DofviewError
-from ..scene import GaussianScene
-from ..scenefile import load_scene
+from dofview.errors import DofviewError
+from dofview.io import load_scene
+from dofview.scene import GaussianScene
 
 
 class SceneLoad:

@@ -11,12 +11,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from imgui_bundle import imgui
 
-from ..frame import OPACITY_NORMS
-from ..scene import COLOUR_SPACES
-from .input import HELP
+from dofview.frame import OPACITY_NORMS
+from dofview.scene import COLOUR_SPACES
+from dofview.viewer.input import HELP
 
 if TYPE_CHECKING:
-    from .viewer import Viewer
+    from dofview.viewer.viewer import Viewer
 
 PANEL_WIDTH = 330  # window units; the image fills the rest of the window
 ERROR_COLOUR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)

@@ -42,13 +42,13 @@ from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import DofviewError
-from ..frame import RenderSettings
-from ..jsonfile import read_json
-from .settings import ViewerSettings
+from dofview.errors import DofviewError
+from dofview.frame import RenderSettings
+from dofview.io.jsonfile import read_json
+from dofview.viewer.settings import ViewerSettings
 
 if TYPE_CHECKING:
-    from .viewer import Viewer
+    from dofview.viewer.viewer import Viewer
 
 SETTLE_TIMEOUT_S = 120.0
 _SETTINGS = {f.name for f in fields(ViewerSettings)} - {"render"}

@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..camera import Camera
-from ..frame import RenderSettings
-from ..lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
-from ..tonemap import Tonemap
+from dofview.camera import Camera
+from dofview.frame import RenderSettings
+from dofview.lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
+from dofview.tonemap import Tonemap
 
 FOCUS_PULL_S = 0.15  # duration of a smooth focus pull
 

@@ -17,20 +17,22 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from ..camera import Camera, framing_camera, load_cameras_json
-from ..cli import render_command_line, save_render
-from ..errors import DofviewError
-from ..focus import auto_focus, depth_at
-from ..lens import Lens
-from ..renderer import Renderer
-from ..scene import GaussianScene
-from .controls import ViewControls
-from .input import InputHandler
-from .loader import SceneLoad
-from .panel import PANEL_WIDTH, draw_ui
-from .settings import FocusPull, ViewerSettings
-from .sorter import SortThread
-from .window import Window
+from dofview.api import save_render
+from dofview.camera import Camera, framing_camera
+from dofview.errors import DofviewError
+from dofview.io.cameras import load_cameras_json
+from dofview.lens import Lens
+from dofview.options import render_command_line
+from dofview.rendering.focus import auto_focus, depth_at
+from dofview.rendering.quads import QuadBackend
+from dofview.rendering.sorter import SortThread
+from dofview.scene import GaussianScene
+from dofview.viewer.controls import ViewControls
+from dofview.viewer.input import InputHandler
+from dofview.viewer.loader import SceneLoad
+from dofview.viewer.panel import PANEL_WIDTH, draw_ui
+from dofview.viewer.settings import FocusPull, ViewerSettings
+from dofview.viewer.window import Window
 
 COUNT_EVERY_S = 0.5  # how often the drawn-Gaussian counter is read back (it costs a GPU sync)
 FRAME_HISTORY = 120
@@ -79,7 +81,7 @@ class Viewer:
         self._sort_key: bytes | None = None  # the view the newest sort was asked for
         self._order_key: bytes | None = None  # the view the uploaded order belongs to
         self.generation = 0
-        self.renderer: Renderer | None = None
+        self.renderer: QuadBackend | None = None
         self.set_scene(scene, scene_path, camera)
 
     # ---- scene and views -------------------------------------------------------------------
@@ -88,7 +90,7 @@ class Viewer:
 
         The new scene is uploaded before the old one is released, so a failed upload keeps it.
         """
-        renderer = Renderer(scene, ctx=self.ctx)
+        renderer = QuadBackend(scene, ctx=self.ctx)
         if self.renderer is not None:
             self.renderer.release()
         self.renderer = renderer
@@ -293,7 +295,7 @@ class Viewer:
         self.capture_requests.clear()
 
     def _write_screen(self, path: Path, viewport: tuple[int, int, int, int]) -> None:
-        from ..png import write_png
+        from dofview.io.png import write_png
 
         w, h = viewport[2], viewport[3]
         data = np.frombuffer(self.ctx.screen.read(viewport=viewport, components=3), np.uint8).reshape(h, w, 3)

@@ -11,12 +11,12 @@ import os
 import sys
 from typing import Callable
 
-from imgui_bundle import imgui  # noqa: I001  (must come before glfw, see module docstring)
 import glfw
 import moderngl
+from imgui_bundle import imgui  # noqa: I001  (must come before glfw, see module docstring)
 
-from ..errors import DofviewError
-from ..gl import GL_REQUIRED
+from dofview.errors import DofviewError
+from dofview.rendering.gl import GL_REQUIRED
 
 HEADLESS_HINT = "use dofview render for headless images"
 

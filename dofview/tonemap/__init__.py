@@ -7,7 +7,7 @@ applied twice. An HDR scene blends linear radiance and only gets the display gam
 
 The linear image of an encoded scene is decode(C) of the blend C over black; its alpha is the
 coverage. So tonemapping the EXR reproduces the PNG exactly (black background).
-The GPU pass in ``shaders/tonemap.frag`` computes the same as :func:`display`; tests hold them equal.
+The GPU pass in ``rendering/glsl/tonemap.frag`` computes the same as :func:`display`; tests hold them equal.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DofviewError
+from dofview.errors import DofviewError
 
 SCENE_ENCODING_GAMMA = 2.2  # the transfer of the photos a standard 3DGS scene was fit to
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .errors import DofviewError
+from dofview.errors import DofviewError
 
 
 def read_json(path: str | Path, what: str) -> object:

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import Camera
-from .frame import Frame, RenderSettings, depth_from_weighted
-from .lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
-from .scene import SH_C0, GaussianScene
-from .tonemap import decode
+from dofview.camera import Camera
+from dofview.frame import Frame, RenderSettings, depth_from_weighted
+from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
+from dofview.scene import SH_C0, GaussianScene
+from dofview.tonemap import decode
 
 _C1 = 0.4886025119029199
 _C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
@@ -77,7 +77,7 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     tau = settings.tau
     ok = np.isfinite(det) & (det > 0) & (o > 0) & (np.minimum(o, ALPHA_MAX) >= tau)
     with np.errstate(divide="ignore", invalid="ignore"):
-        r2 = np.minimum(2.0 * np.log(o / tau), 9.0) if tau > 0 else np.full_like(o, 9.0)  # ≤ 3σ, as splat.vert
+        r2 = np.minimum(2.0 * np.log(o / tau), 9.0) if tau > 0 else np.full_like(o, 9.0)  # ≤ 3σ, as quads.vert
     mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)
     sel = np.nonzero(ok)[0]
     return {

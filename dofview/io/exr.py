@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
-from .atomic import atomic_output
-from .errors import DofviewError
+from dofview.errors import DofviewError
+from dofview.io.atomic import atomic_output
 
 HALF_MAX = 65504.0
 

@@ -1,27 +1,26 @@
-"""The OpenGL splatting renderer: one code path for the viewer, the CLI, the benchmark and tests.
+"""The renderer contract every backend meets, and what all backends share: the scene's storage
+buffers, the float targets a frame is drawn into, the read-back and the display (tone-mapping) pass.
 
-Per-Gaussian data lives in GPU storage buffers uploaded once per scene; only the draw order is
-uploaded again, and only when the view changes (lens and exposure changes re-draw without
-re-sorting). One instanced draw of four-vertex quads; see shaders/splat.vert for the math.
+A backend implements :meth:`Renderer.draw`; the viewer, the CLI, the benchmark and the tests use
+only the methods here, so any backend serves all of them. Backends are named in one place,
+:data:`dofview.rendering.BACKENDS`.
 """
 
 from __future__ import annotations
 
-import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
-from .camera import Camera
-from .frame import OPACITY_NORMS, Frame, RenderSettings, depth_from_weighted
-from .gl import check_size, headless_context, load_shader
-from .lens import Lens
-from .packing import colour_scale, gpu_arrays
-from .scene import GaussianScene
-from .sort import front_to_back
-from .tonemap import Tonemap, decode
-
+from dofview.camera import Camera
+from dofview.frame import Frame, RenderSettings, depth_from_weighted
+from dofview.lens import Lens
+from dofview.rendering.gl import check_size, headless_context, load_shader
+from dofview.rendering.packing import colour_scale, gpu_arrays
+from dofview.scene import GaussianScene
+from dofview.tonemap import Tonemap, decode
 
 UPLOAD_CHUNK = 1 << 16  # Gaussians packed and uploaded per step; even, so packed SH halves stay word-aligned
 
@@ -41,8 +40,12 @@ def _float32(x: float) -> float:
     return min(x, float(np.finfo(np.float32).max))
 
 
-class Renderer:
+class Renderer(ABC):
     """Renders one :class:`GaussianScene` with depth of field into float targets.
+
+    Targets: ``colour_tex`` (H, W) RGBA32F, linear premultiplied RGB (display-encoded for sRGB
+    scenes unless blending in linear light) and coverage; ``depth_tex`` (H, W) RGBA32F holding
+    Σ w·z, Σ w/z, –, Σ w with w = α·T the blending weight of each splat.
 
     Args:
         scene: the scene; its arrays are uploaded once.
@@ -51,29 +54,24 @@ class Renderer:
             rather than in float32.
     """
 
+    name = "base"
+
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
         self.ctx = ctx or headless_context()
         self.scene = scene
         self.encoded_scene = scene.colour_space == "srgb"
+        self._encoded = self.encoded_scene
         self.stats = DrawStats(total=scene.count)
-        n = max(scene.count, 1)  # GL refuses zero-sized buffers; an empty scene draws 0 instances
         self.packed = packed
-        scale = colour_scale(scene) if packed else 1.0
-        self._buffers = self._upload(scene, packed, scale)
-        degree = scene.sh_degree
-        self._order = self.ctx.buffer(reserve=4 * n)
-        self._counter = self.ctx.buffer(reserve=4)
-        defines = {"SH_DEGREE": degree, "SH_REST": (degree + 1) ** 2 - 1,
-                   "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl",
-                   "COLOUR_SCALE": repr(scale)}
-        self.program = self.ctx.program(
-            vertex_shader=load_shader("splat.vert", defines), fragment_shader=load_shader("splat.frag"))
-        self._vao = self.ctx.vertex_array(self.program, [])
+        self.colour_scale = colour_scale(scene) if packed else 1.0
+        self._buffers = self._upload(scene, packed, self.colour_scale)
+        self.shader_defines = {"SH_DEGREE": scene.sh_degree, "SH_REST": (scene.sh_degree + 1) ** 2 - 1,
+                               "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl",
+                               "COLOUR_SCALE": repr(self.colour_scale)}
         self._tonemap = self.ctx.program(
             vertex_shader=load_shader("fullscreen.vert"), fragment_shader=load_shader("tonemap.frag"))
         self._tonemap_vao = self.ctx.vertex_array(self._tonemap, [])
         self._size: tuple[int, int] | None = None
-        self._view_key: bytes | None = None
         self.camera: Camera | None = None
         self.lens: Lens | None = None
 
@@ -97,8 +95,8 @@ class Renderer:
 
     @property
     def gpu_bytes(self) -> int:
-        """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer)."""
-        return sum(b.size for b in self._buffers.values()) + self._order.size
+        """Bytes of per-Gaussian GPU storage (the scene's buffers; backends add their own)."""
+        return sum(b.size for b in self._buffers.values())
 
     @property
     def bytes_per_gaussian(self) -> float:
@@ -120,67 +118,20 @@ class Renderer:
         self.display_fbo = self.ctx.framebuffer(color_attachments=[self._display_rb])
         self._size = (width, height)
 
-    def sort(self, camera: Camera) -> None:
-        """Upload the back-to-front order for ``camera`` if its view differs from the last one."""
-        key = camera.view_key()
-        if key == self._view_key:
-            return
-        t0 = time.perf_counter()
-        order = front_to_back(self.scene.means, camera)[::-1]
-        self.stats.sort_ms = (time.perf_counter() - t0) * 1e3
-        self.set_order(order, key)
-
-    def set_order(self, back_to_front: np.ndarray, view_key: bytes | None = None) -> None:
-        """Use a draw order computed elsewhere (e.g. by the viewer's sort thread)."""
-        if back_to_front.size:
-            self._order.write(np.ascontiguousarray(back_to_front, dtype=np.uint32).tobytes())
-        self._view_key = view_key
-
-    # ---- drawing ---------------------------------------------------------------------------
+    # ---- the backend's part -----------------------------------------------------------------
+    @abstractmethod
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
              count: bool = False, sort: bool = True) -> None:
-        """Splat the scene into the float targets (no read-back). Sorts only if the view moved;
-        ``sort=False`` keeps the current order (the viewer sorts off its UI thread meanwhile)."""
-        self._targets(camera.width, camera.height)
-        if sort:
-            self.sort(camera)
-        self.camera, self.lens = camera, lens
-        p = self.program
-        for i, name in enumerate(("u_R0", "u_R1", "u_R2")):
-            p[name].value = tuple(float(v) for v in camera.R[i])
-        p["u_T"].value = tuple(float(v) for v in camera.T)
-        if "u_eye" in p:
-            p["u_eye"].value = tuple(float(v) for v in camera.centre)
-        p["u_focal"].value = (camera.fx, camera.fy)
-        p["u_principal"].value = (camera.cx, camera.cy)
-        p["u_viewport"].value = (float(camera.width), float(camera.height))
-        p["u_near"].value = settings.near
-        p["u_tau"].value = settings.tau
-        p["u_aperture"].value = lens.aperture
-        p["u_inv_focus"].value = _float32(lens.inv_focus)
-        p["u_k"].value = settings.k
-        p["u_opacity_norm"].value = OPACITY_NORMS.index(settings.opacity_norm)
-        p["u_blend_linear"].value = settings.blend_linear
-        p["u_count"].value = count
-        for binding, buf in self._buffers.items():
-            buf.bind_to_storage_buffer(binding)
-        self._order.bind_to_storage_buffer(3)
-        if count:
-            self._counter.write(np.zeros(1, np.uint32).tobytes())
-        self._counter.bind_to_storage_buffer(4)
-        self.fbo.use()
-        self.ctx.viewport = (0, 0, camera.width, camera.height)
-        self.fbo.clear(0.0, 0.0, 0.0, 0.0)
-        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        self.ctx.enable(moderngl.BLEND)
-        self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
-        self.ctx.blend_equation = moderngl.FUNC_ADD
-        if self.scene.count:
-            self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self.scene.count)
-        self.ctx.disable(moderngl.BLEND)
-        self._encoded = self.encoded_scene and not settings.blend_linear
-        if count:
-            self.stats.drawn = int(np.frombuffer(self._counter.read(), np.uint32)[0])
+        """Splat the scene into ``colour_tex``/``depth_tex`` (no read-back). ``count``: also count
+        the Gaussians drawn into ``stats.drawn``; ``sort=False`` keeps the current order."""
+
+    @abstractmethod
+    def sort(self, camera: Camera) -> None:
+        """Bring the draw order up to date for ``camera`` (a no-op when the view did not move)."""
+
+    def set_order(self, back_to_front: np.ndarray, view_key: bytes | None = None) -> None:
+        """Use a draw order computed elsewhere (the viewer's sort thread); backends that sort on the
+        GPU ignore it."""
 
     def read(self) -> Frame:
         """Read the last draw back as a linear :class:`Frame` (rows top to bottom)."""
@@ -227,11 +178,15 @@ class Renderer:
         data = np.frombuffer(self.display_fbo.read(components=3), np.uint8).reshape(h, w, 3)
         return data[::-1].copy()
 
+    def _release_backend(self) -> None:
+        """Free what the backend itself created."""
+
     def release(self) -> None:
         """Free the GPU objects of this renderer (the context stays)."""
         for b in self._buffers.values():
             b.release()
-        for obj in (self._order, self._counter, self._vao, self.program, self._tonemap_vao, self._tonemap):
+        self._release_backend()
+        for obj in (self._tonemap_vao, self._tonemap):
             obj.release()
         if self._size is not None:
             for obj in (self.fbo, self.colour_tex, self.depth_tex, self.display_fbo, self._display_rb):

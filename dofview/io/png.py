@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output
-from .errors import DofviewError
+from dofview.errors import DofviewError
+from dofview.io.atomic import atomic_output
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:

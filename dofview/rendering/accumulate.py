@@ -13,9 +13,9 @@ from typing import Callable
 
 import numpy as np
 
-from .camera import Camera
-from .frame import Frame, depth_from_weighted
-from .lens import Lens
+from dofview.camera import Camera
+from dofview.frame import Frame, depth_from_weighted
+from dofview.lens import Lens
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 

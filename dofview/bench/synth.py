@@ -25,8 +25,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .camera import Camera, look_at
-from .scene import SH_C0, ColourSpace, GaussianScene, sh_coeff_count
+from dofview.bench.primitives import (
+    IDENTITY_QUAT,
+    Parts,
+    dc_from_colour,
+    grid,
+    orbit_cameras,
+    quat_from_matrix,
+    yaw_matrix,
+)
+from dofview.camera import Camera, look_at
+from dofview.scene import SH_C0, ColourSpace, GaussianScene, sh_coeff_count
 
 CANONICAL_FOV_DEG = 60.0
 """Horizontal field of view (degrees) of the sample cameras."""
@@ -44,116 +53,6 @@ _DISC_THICKNESS = 0.02
 # Coplanar texels share one camera depth in the canonical view; a tiny seeded depth jitter
 # (relative to depth) gives every sort a strict, reproducible order without visible relief.
 _DEPTH_JITTER = 1e-4
-
-_IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0], np.float32)
-
-
-# --------------------------------------------------------------------------------------------
-# Small helpers
-
-
-def _dc_from_colour(colour: np.ndarray) -> np.ndarray:
-    """(…, 3) base colour → (…, 3) float32 SH DC coefficient (colour = SH_C0·dc + 0.5)."""
-    return ((np.asarray(colour, np.float64) - 0.5) / SH_C0).astype(np.float32)
-
-
-def _quat_from_matrix(m: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation matrix → (4,) float32 unit quaternion (w, x, y, z)."""
-    m = np.asarray(m, np.float64)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    # Shepperd's branch choice: divide by the largest of the four candidates for stability.
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q)
-    return (q / np.linalg.norm(q)).astype(np.float32)
-
-
-def _yaw_matrix(yaw_deg: float) -> np.ndarray:
-    """(3, 3) rotation about the world y axis (the vertical)."""
-    a = math.radians(yaw_deg)
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-@dataclass
-class _Parts:
-    """Accumulates Gaussian groups, then concatenates them into one scene."""
-
-    means: list
-    quats: list
-    scales: list
-    opacities: list
-    colours: list
-    rest: list
-
-    @classmethod
-    def empty(cls) -> "_Parts":
-        return cls([], [], [], [], [], [])
-
-    def add(self, means, scales, colours, opacities, quats=None, rest=None) -> None:
-        n = len(means)
-        self.means.append(np.asarray(means, np.float32).reshape(n, 3))
-        self.scales.append(np.broadcast_to(np.asarray(scales, np.float32), (n, 3)))
-        self.colours.append(np.broadcast_to(np.asarray(colours, np.float64), (n, 3)))
-        self.opacities.append(np.broadcast_to(np.asarray(opacities, np.float32), (n,)))
-        q = _IDENTITY_QUAT if quats is None else quats
-        self.quats.append(np.broadcast_to(np.asarray(q, np.float32), (n, 4)))
-        self.rest.append(rest)
-
-    def build(self, colour_space: ColourSpace, name: str, degree: int = 0) -> GaussianScene:
-        sh_rest = None
-        if degree > 0:
-            k = sh_coeff_count(degree) - 1
-            sh_rest = np.concatenate([
-                np.zeros((len(m), k, 3), np.float32) if r is None else np.asarray(r, np.float32)
-                for m, r in zip(self.means, self.rest)
-            ])
-        return GaussianScene(
-            means=np.concatenate(self.means),
-            quats=np.concatenate(self.quats),
-            scales=np.concatenate(self.scales),
-            opacities=np.concatenate(self.opacities),
-            sh_dc=_dc_from_colour(np.concatenate(self.colours)),
-            sh_rest=sh_rest,
-            colour_space=colour_space,
-            name=name,
-        )
-
-
-def _grid(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
-    """Texel indices (i along u, j along v), each (nv, nu) int."""
-    j, i = np.mgrid[0:nv, 0:nu]
-    return i, j
-
-
-def _orbit_cameras(pivot: tuple[float, float, float], angles: list[tuple[float, float]],
-                   width: int, height: int, fov_deg: float) -> list[Camera]:
-    """Cameras on a sphere around ``pivot`` through the origin, all looking at ``pivot``.
-
-    ``angles`` are (yaw, pitch) in degrees: yaw swings the eye to the right (+x) around the
-    vertical, pitch raises it (towards −y) so it looks down. (0, 0) is the canonical camera at
-    the origin looking along +z with R = I, T = 0.
-    """
-    p = np.asarray(pivot, np.float64)
-    radius = float(np.linalg.norm(p))
-    cams = []
-    for k, (yaw, pitch) in enumerate(angles):
-        y, x = math.radians(yaw), math.radians(pitch)
-        offset = radius * np.array([math.sin(y) * math.cos(x), -math.sin(x), -math.cos(y) * math.cos(x)])
-        cam = look_at(p + offset, p, width, height, fov_deg)
-        cams.append(replace(cam, name=f"view_{k:03d}"))
-    return cams
-
 
 # (yaw, pitch) in degrees; the first is the canonical front view, the rest a loose spiral that
 # reaches ±20° of yaw and ~10° of pitch.
@@ -234,7 +133,7 @@ _PEBBLES = 400
 def _card_colours(card: Card, rng: np.random.Generator) -> np.ndarray:
     """(texels, texels, 3) base colours of a card (row j from the top, column i from the left)."""
     n = card.texels
-    i, j = _grid(n, n)
+    i, j = grid(n, n)
     if card.pattern == "checker":
         on = ((i // 2 + j // 2) % 2).astype(bool)
         img = np.where(on[..., None], [0.92, 0.92, 0.9], [0.06, 0.06, 0.07])
@@ -273,9 +172,9 @@ def _card_colours(card: Card, rng: np.random.Generator) -> np.ndarray:
     return np.clip(img, 0.0, 1.0)
 
 
-def _add_card(parts: _Parts, card: Card, rng: np.random.Generator) -> None:
+def _add_card(parts: Parts, card: Card, rng: np.random.Generator) -> None:
     n, s = card.texels, card.spacing
-    i, j = _grid(n, n)
+    i, j = grid(n, n)
     cx, cy, cz = card.centre
     x = cx + ((i + 0.5) / n - 0.5) * card.size
     y = cy + ((j + 0.5) / n - 0.5) * card.size
@@ -285,11 +184,11 @@ def _add_card(parts: _Parts, card: Card, rng: np.random.Generator) -> None:
               _card_colours(card, rng).reshape(-1, 3), 0.97)
 
 
-def _add_wall(parts: _Parts, rng: np.random.Generator) -> None:
+def _add_wall(parts: Parts, rng: np.random.Generator) -> None:
     s = _WALL_SPACING
     nx = int(round((_WALL_X[1] - _WALL_X[0]) / s))
     ny = int(round((GROUND_Y - _WALL_TOP) / s))
-    i, j = _grid(nx, ny)
+    i, j = grid(nx, ny)
     x = _WALL_X[0] + (i + 0.5) * s
     y = _WALL_TOP + (j + 0.5) * s
     z = WALL_DEPTH * (1.0 + rng.uniform(-_DEPTH_JITTER, _DEPTH_JITTER, (ny, nx)))
@@ -306,11 +205,11 @@ def _add_wall(parts: _Parts, rng: np.random.Generator) -> None:
               colours.reshape(-1, 3), 0.96)
 
 
-def _add_ground(parts: _Parts, rng: np.random.Generator) -> None:
+def _add_ground(parts: Parts, rng: np.random.Generator) -> None:
     s = _GROUND_SPACING
     nx = int(round((_GROUND_X[1] - _GROUND_X[0]) / s))
     nz = int(round((_GROUND_Z[1] - _GROUND_Z[0]) / s))
-    i, k = _grid(nx, nz)
+    i, k = grid(nx, nz)
     x = _GROUND_X[0] + (i + 0.5) * s
     z = _GROUND_Z[0] + (k + 0.5) * s
     y = np.full_like(x, GROUND_Y) + rng.uniform(-1e-3, 1e-3, x.shape)
@@ -323,7 +222,7 @@ def _add_ground(parts: _Parts, rng: np.random.Generator) -> None:
               colours.reshape(-1, 3), 0.95)
 
 
-def _add_pebbles(parts: _Parts, rng: np.random.Generator) -> None:
+def _add_pebbles(parts: Parts, rng: np.random.Generator) -> None:
     n = _PEBBLES
     z = rng.uniform(2.8, 13.5, n)
     # Mostly inside the canonical view (|x/z| < tan 30° ≈ 0.58), a few just outside it.
@@ -358,7 +257,7 @@ def cards_scene(seed: int = 0) -> GaussianScene:
         The scene, float32 arrays, name "cards".
     """
     rng = np.random.default_rng(seed)
-    parts = _Parts.empty()
+    parts = Parts.empty()
     for card in CARDS:
         _add_card(parts, card, rng)
     _add_wall(parts, rng)
@@ -374,7 +273,7 @@ def cards_cameras(width: int = NOMINAL_SIZE[0], height: int = NOMINAL_SIZE[1]) -
     ``c`` is at depth ``c.depth``; the others orbit the point (0, 0, 5) by up to ±20° of yaw and
     −2…8° of pitch (raised and looking down).
     """
-    return _orbit_cameras((0.0, 0.0, 5.0), _ORBIT, width, height, CANONICAL_FOV_DEG)
+    return orbit_cameras((0.0, 0.0, 5.0), _ORBIT, width, height, CANONICAL_FOV_DEG)
 
 
 # --------------------------------------------------------------------------------------------
@@ -448,13 +347,13 @@ def _lit(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray, cap: float
     return np.where(peak > cap, rad * (cap / np.maximum(peak, 1e-12)), np.maximum(rad, 0.0))
 
 
-def _add_room(parts: _Parts, rng: np.random.Generator) -> None:
+def _add_room(parts: Parts, rng: np.random.Generator) -> None:
     s = _ROOM_SPACING
     sigma = _DISC_SIGMA * s
     nx = int(round((_ROOM_X[1] - _ROOM_X[0]) / s))
     # Floor: planks running along z, 3 texels (0.42 units) wide, each with its own tone.
     nz = int(round((ROOM_BACK_DEPTH - _ROOM_FRONT) / s))
-    i, k = _grid(nx, nz)
+    i, k = grid(nx, nz)
     x = _ROOM_X[0] + (i + 0.5) * s
     z = _ROOM_FRONT + (k + 0.5) * s
     y = FLOOR_Y + rng.uniform(-1e-3, 1e-3, x.shape)
@@ -466,7 +365,7 @@ def _add_room(parts: _Parts, rng: np.random.Generator) -> None:
               _lit(pts, normal, albedo.reshape(-1, 3), MAX_DIFFUSE_RADIANCE), 0.97)
     # Back wall: pale plaster with a darker skirting board along the floor.
     ny = int(round((FLOOR_Y - _ROOM_TOP) / s))
-    i, j = _grid(nx, ny)
+    i, j = grid(nx, ny)
     x = _ROOM_X[0] + (i + 0.5) * s
     y = _ROOM_TOP + (j + 0.5) * s
     z = ROOM_BACK_DEPTH * (1.0 + rng.uniform(-_DEPTH_JITTER, _DEPTH_JITTER, x.shape))
@@ -478,9 +377,9 @@ def _add_room(parts: _Parts, rng: np.random.Generator) -> None:
               _lit(pts, normal, albedo.reshape(-1, 3), MAX_DIFFUSE_RADIANCE), 0.97)
 
 
-def _add_box(parts: _Parts, box: _Box, rng: np.random.Generator, degree: int) -> None:
+def _add_box(parts: Parts, box: _Box, rng: np.random.Generator, degree: int) -> None:
     w, h, d = box.size
-    rot = _yaw_matrix(box.yaw)
+    rot = yaw_matrix(box.yaw)
     centre = np.array([box.x, FLOOR_Y - h / 2, box.z])
     # Faces as (normal, u axis, v axis, half extents along u, v) in box coordinates;
     # the bottom face rests on the floor and is never seen.
@@ -496,7 +395,7 @@ def _add_box(parts: _Parts, box: _Box, rng: np.random.Generator, degree: int) ->
         n_ax, u_ax, v_ax = (np.asarray(a, np.float64) for a in (normal, u_ax, v_ax))
         nu = max(2, int(round(2 * hu / _BOX_SPACING)))
         nv = max(2, int(round(2 * hv / _BOX_SPACING)))
-        i, j = _grid(nu, nv)
+        i, j = grid(nu, nv)
         u = (-hu + (i + 0.5) * (2 * hu / nu)).reshape(-1, 1)
         v = (-hv + (j + 0.5) * (2 * hv / nv)).reshape(-1, 1)
         local = n_ax * offset + u * u_ax + v * v_ax
@@ -505,7 +404,7 @@ def _add_box(parts: _Parts, box: _Box, rng: np.random.Generator, degree: int) ->
         albedo = np.asarray(box.albedo) * (1 + rng.uniform(-0.04, 0.04, (len(pts), 1)))
         colour = _lit(pts, normal_w, albedo, cap)
         # Disc frame: local x, y along the face, local z along its normal.
-        quat = _quat_from_matrix(rot @ np.stack([u_ax, v_ax, n_ax], 1))
+        quat = quat_from_matrix(rot @ np.stack([u_ax, v_ax, n_ax], 1))
         su, sv = _DISC_SIGMA * 2 * hu / nu, _DISC_SIGMA * 2 * hv / nv
         rest = None
         if box.glossy and degree > 0:
@@ -533,7 +432,7 @@ def _glossy_rest(n: int, normal: np.ndarray, degree: int, rng: np.random.Generat
     return rest
 
 
-def _add_lamp(parts: _Parts, rng: np.random.Generator) -> None:
+def _add_lamp(parts: Parts, rng: np.random.Generator) -> None:
     centre = np.asarray(LAMP_POSITION, np.float64)
     # Pole from the stand box's top up to the bulb: dark metal, lit like the other surfaces.
     stand = _BOXES[1]
@@ -576,7 +475,7 @@ def lamp_scene(seed: int = 0) -> GaussianScene:
         The scene, float32 arrays, sh_rest (N, 15, 3), name "lamp".
     """
     rng = np.random.default_rng(seed)
-    parts = _Parts.empty()
+    parts = Parts.empty()
     _add_room(parts, rng)
     for box in _BOXES:
         _add_box(parts, box, rng, 3)
@@ -595,7 +494,7 @@ def lamp_cameras(width: int = NOMINAL_SIZE[0], height: int = NOMINAL_SIZE[1]) ->
     ``view_000`` is the canonical camera (origin, looking along +z); the others orbit the point
     (0, 0, 4.5) by up to ±20° of yaw and −2…8° of pitch.
     """
-    return _orbit_cameras((0.0, 0.0, LAMP_DEPTH), _ORBIT, width, height, CANONICAL_FOV_DEG)
+    return orbit_cameras((0.0, 0.0, LAMP_DEPTH), _ORBIT, width, height, CANONICAL_FOV_DEG)
 
 
 # --------------------------------------------------------------------------------------------
@@ -687,10 +586,10 @@ def single_gaussian(position, scale: float, opacity: float = 0.2, colour=(1.0, 1
         raise ValueError(f"scale must be > 0, got {scale}")
     return GaussianScene(
         means=np.asarray(position, np.float32).reshape(1, 3),
-        quats=_IDENTITY_QUAT[None],
+        quats=IDENTITY_QUAT[None],
         scales=np.full((1, 3), scale, np.float32),
         opacities=np.array([opacity], np.float32),
-        sh_dc=_dc_from_colour(np.asarray(colour, np.float64).reshape(1, 3)),
+        sh_dc=dc_from_colour(np.asarray(colour, np.float64).reshape(1, 3)),
         sh_rest=None,
         colour_space=colour_space,
         name="single",

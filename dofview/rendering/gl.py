@@ -1,7 +1,6 @@
 """OpenGL context and shader files.
 
-Shaders live in the top-level ``shaders/`` folder of a source checkout and in ``dofview/shaders``
-inside the wheel; both are found at run time. ``#include "file"`` lines are expanded (``#include NAME``
+Shaders live in ``dofview/rendering/glsl/``, inside the package (and so inside the wheel). ``#include "file"`` lines are expanded (``#include NAME``
 takes the file named by the define NAME) and ``#define``s are inserted after ``#version``.
 """
 
@@ -13,22 +12,21 @@ from pathlib import Path
 
 import moderngl
 
-from .errors import DofviewError
+from dofview.errors import DofviewError
 
 _INCLUDE = re.compile(r'^\s*#include\s+(?:"([^"]+)"|(\w+))\s*$', re.M)
 GL_REQUIRED = 430  # SSBOs and atomics in the vertex stage
 
 
 def shader_dir() -> Path:
-    here = Path(__file__).resolve().parent
-    for cand in (here / "shaders", here.parent / "shaders"):
-        if (cand / "splat.vert").is_file():
-            return cand
-    raise DofviewError(f"dofview's shader files are missing (looked in {here / 'shaders'}); reinstall dofview")
+    glsl = Path(__file__).resolve().parent / "glsl"
+    if not (glsl / "quads.vert").is_file():
+        raise DofviewError(f"dofview's shader files are missing (looked in {glsl}); reinstall dofview")
+    return glsl
 
 
 def load_shader(name: str, defines: dict[str, object] | None = None) -> str:
-    """The text of ``shaders/name`` with includes expanded and ``defines`` set."""
+    """The text of ``glsl/name`` with includes expanded and ``defines`` set."""
     base = shader_dir()
     defines = defines or {}
     src = (base / name).read_text()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frame import Frame
+from dofview.frame import Frame
 
 
 def depth_at(frame: Frame, x: float, y: float, radius: int = 2, min_alpha: float = 0.5) -> float | None:

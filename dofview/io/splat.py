@@ -12,10 +12,10 @@ from typing import Callable
 
 import numpy as np
 
-from .atomic import atomic_output
-from .errors import DofviewError
-from .scene import SH_C0, GaussianScene
-from .scenefile import input_size
+from dofview.errors import DofviewError
+from dofview.io._common import input_size
+from dofview.io.atomic import atomic_output
+from dofview.scene import SH_C0, GaussianScene
 
 SPLAT_DTYPE = np.dtype([("position", "<f4", 3), ("scale", "<f4", 3), ("rgba", "u1", 4), ("rot", "u1", 4)])
 
@@ -43,7 +43,7 @@ def read_splat(path: str | Path, progress: Callable[[int, int], None] | None = N
     if not ok.all():
         import warnings
 
-        from .errors import DofviewWarning
+        from dofview.errors import DofviewWarning
         warnings.warn(f"{path}: dropped {int(n - ok.sum())} of {n} Gaussians with NaN, infinite or non-positive "
                       "values", DofviewWarning, stacklevel=3)
     return GaussianScene(means=means[ok], quats=q[ok], scales=scales[ok], opacities=rgba[ok, 3],

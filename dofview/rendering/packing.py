@@ -1,6 +1,6 @@
 """GPU storage layouts of a scene: full float32, or packed to ≤ 128 bytes per Gaussian at SH degree 3.
 
-Packed layout, per Gaussian (read by shaders/fetch_packed.glsl):
+Packed layout, per Gaussian (read by rendering/glsl/fetch_packed.glsl):
 - ``core``: 8 uint32 words = 32 B: mean xyz (float32 bits), scale xyz and base colour rgb as
   halves (3 words), the rotation as its smallest three components in snorm16 with the index of
   the dropped one (2 bits), and opacity in 14 bits.
@@ -8,7 +8,7 @@ Packed layout, per Gaussian (read by shaders/fetch_packed.glsl):
   degree 0).
 Colours (base and SH rest) are stored divided by :func:`colour_scale`, so HDR radiance beyond the
 half range survives.
-The full layout (shaders/fetch_full.glsl) keeps everything float32, for measuring what packing
+The full layout (rendering/glsl/fetch_full.glsl) keeps everything float32, for measuring what packing
 costs in image error.
 """
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import SH_C0, GaussianScene
+from dofview.scene import SH_C0, GaussianScene
 
 HALF_MAX = 65504.0
 SQRT2 = np.sqrt(2.0)

@@ -1,4 +1,4 @@
-"""Performance at scale, measured in one run: ``python -m dofview.perf [--quick] [--only load,sort,…]``.
+"""Performance at scale, measured in one run: ``python -m dofview.bench.perf [--quick] [--only load,sort,…]``.
 
 Sub-measurements (each a function returning a JSON-able dict):
 
@@ -43,7 +43,7 @@ from typing import Callable
 
 import numpy as np
 
-from .progress import Progress
+from dofview.progress import Progress
 
 MEASUREMENTS = ("load", "sort", "ui", "memory", "culling", "fragments", "frames", "bottleneck")
 FRAME_SIZE = (1200, 675)
@@ -92,14 +92,14 @@ def load_child(path: str) -> dict:
     """
     import tracemalloc
 
-    from .gl import headless_context
-    from .packing import gpu_arrays
-    from .ply import read_ply
-    from .renderer import Renderer
+    from dofview.io.ply import read_ply
+    from dofview.rendering.gl import headless_context
+    from dofview.rendering.packing import gpu_arrays
+    from dofview.rendering.quads import QuadBackend
 
     ctx = headless_context()
     probe = read_ply(path)  # warms imports; released before the baseline
-    Renderer(probe.subset(np.arange(min(probe.count, 16))), ctx).release()
+    QuadBackend(probe.subset(np.arange(min(probe.count, 16))), ctx).release()
     del probe
     resettable = _reset_peak()
     base_kib = _status_kib("VmRSS")
@@ -107,7 +107,7 @@ def load_child(path: str) -> dict:
     t0 = time.perf_counter()
     scene = read_ply(path)
     t1 = time.perf_counter()
-    renderer = Renderer(scene, ctx)
+    renderer = QuadBackend(scene, ctx)
     ctx.finish()
     t2 = time.perf_counter()
     _, traced_peak = tracemalloc.get_traced_memory()
@@ -126,14 +126,14 @@ def load_child(path: str) -> dict:
 
 def measure_load_file(path: str | Path) -> dict:
     """Run :func:`load_child` for ``path`` in a fresh Python process and return its report."""
-    out = subprocess.run([sys.executable, "-m", "dofview.perf", "--load-child", str(path)],
+    out = subprocess.run([sys.executable, "-m", "dofview.bench.perf", "--load-child", str(path)],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def measure_load(sizes: tuple[int, ...], folder: Path) -> dict:
-    from .ply import write_ply
-    from .synth import random_scene
+    from dofview.bench.synth import random_scene
+    from dofview.io.ply import write_ply
 
     rows = []
     with Progress("perf: load", len(sizes), delay=0.0) as bar:
@@ -148,8 +148,13 @@ def measure_load(sizes: tuple[int, ...], folder: Path) -> dict:
 
 # ---- sort ------------------------------------------------------------------------------------
 def measure_sort(sizes: tuple[int, ...], repeat: int) -> dict:
-    from .sort import argsort_keys, camera_depths, depth_keys, front_to_back
-    from .synth import benchmark_camera, random_scene
+    from dofview.bench.synth import benchmark_camera, random_scene
+    from dofview.rendering.sort import (
+        argsort_keys,
+        camera_depths,
+        depth_keys,
+        front_to_back,
+    )
 
     cam = benchmark_camera()
     rows = []
@@ -179,9 +184,9 @@ def measure_ui_stall(n: int, repeat: int) -> dict:
     this thread plays the UI, polling for the result every millisecond as a frame loop would: the
     longest gap between its polls against the sort time. A sort that held the interpreter lock
     would stall the UI for the whole sort (gap ≈ sort time)."""
-    from .camera import look_at
-    from .synth import random_scene
-    from .viewer.sorter import SortThread
+    from dofview.bench.synth import random_scene
+    from dofview.camera import look_at
+    from dofview.rendering.sorter import SortThread
 
     means = random_scene(n, seed=7).means
     worker = SortThread()
@@ -205,14 +210,14 @@ def measure_ui_stall(n: int, repeat: int) -> dict:
 
 # ---- GPU memory --------------------------------------------------------------------------------
 def measure_memory(n: int) -> dict:
-    from .renderer import Renderer
-    from .synth import random_scene
+    from dofview.bench.synth import random_scene
+    from dofview.rendering.quads import QuadBackend
 
     rows = []
     for degree in (0, 3):
         scene = random_scene(n, degree=degree, seed=3)
         for packed in (True, False):
-            r = Renderer(scene, packed=packed)
+            r = QuadBackend(scene, packed=packed)
             rows.append({"degree": degree, "packed": packed, "bytes_per_gaussian": r.bytes_per_gaussian})
             r.release()
     return {"count": n, "rows": rows, "note": "includes the 4 B/Gaussian draw-order buffer"}
@@ -226,7 +231,7 @@ def time_frames(renderer, camera, lens, settings, frames: int) -> dict:
     value for later queries. ``finish()`` after ``frames`` frames makes the wall time GPU time
     plus the (small) per-frame Python overhead.
     """
-    from .tonemap import Tonemap
+    from dofview.tonemap import Tonemap
 
     ctx = renderer.ctx
     tm = Tonemap()
@@ -244,7 +249,7 @@ def time_frames(renderer, camera, lens, settings, frames: int) -> dict:
 
 def _with_hidden(scene, where: str):
     """``scene`` followed by a copy of it that the camera of synth.random_scene cannot see."""
-    from .scene import GaussianScene
+    from dofview.scene import GaussianScene
 
     moved = scene.means.copy()
     if where == "frustum":  # beside the view: projected, then culled by the screen-extent test
@@ -258,10 +263,10 @@ def _with_hidden(scene, where: str):
 
 
 def measure_culling(n: int, size: tuple[int, int], frames: int) -> dict:
-    from .frame import RenderSettings
-    from .lens import Lens
-    from .renderer import Renderer
-    from .synth import benchmark_camera, random_scene
+    from dofview.bench.synth import benchmark_camera, random_scene
+    from dofview.frame import RenderSettings
+    from dofview.lens import Lens
+    from dofview.rendering.quads import QuadBackend
 
     cam = benchmark_camera(*size)
     visible = random_scene(n, degree=3, seed=4)
@@ -270,7 +275,7 @@ def measure_culling(n: int, size: tuple[int, int], frames: int) -> dict:
                 _with_hidden(visible, "frustum")), ("+ same count behind the camera", _with_hidden(visible, "behind")))
     with Progress("perf: culling", len(variants) * 2, delay=0.0) as bar:
         for name, scene in variants:
-            r = Renderer(scene)
+            r = QuadBackend(scene)
             for aperture in (0.0, 100.0):
                 row = {"variant": name, "count": scene.count, "aperture": aperture}
                 row.update(time_frames(r, cam, Lens(FOCUS, aperture), RenderSettings(), frames))
@@ -286,7 +291,7 @@ def quad_fragments(pr: dict, width: int, height: int, shape: str) -> np.ndarray:
     """(M,) estimated pixels rasterised per Gaussian, from reference.project output ``pr``.
 
     ``shape`` "tight": the renderer's quad, the rectangle of half sides r·√λ + ½ px along the
-    eigen-axes of the blurred covariance, r² = pr["r2"] (shaders/splat.vert). "3sigma": an
+    eigen-axes of the blurred covariance, r² = pr["r2"] (rendering/glsl/quads.vert). "3sigma": an
     axis-aligned square of half side 3·√λ₁ (the reference 3DGS rasteriser's bound). Areas are
     clipped to the image: exactly for the square, for the rotated rectangle by the fraction of its
     axis-aligned box that lies inside.
@@ -313,15 +318,15 @@ def quad_fragments(pr: dict, width: int, height: int, shape: str) -> np.ndarray:
 
 
 def measure_fragments(n: int, size: tuple[int, int]) -> dict:
-    from .frame import RenderSettings
-    from .lens import Lens
-    from .reference import project
-    from .renderer import Renderer
-    from .synth import benchmark_camera, random_scene
+    from dofview.bench.synth import benchmark_camera, random_scene
+    from dofview.frame import RenderSettings
+    from dofview.lens import Lens
+    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.reference import project
 
     cam = benchmark_camera(*size)
     scene = random_scene(n, degree=0, seed=5)
-    renderer = Renderer(scene)
+    renderer = QuadBackend(scene)
     rows = []
     for aperture in (0.0, 100.0):
         lens = Lens(FOCUS, aperture)
@@ -343,11 +348,11 @@ def measure_fragments(n: int, size: tuple[int, int]) -> dict:
 
 
 def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3) -> dict:
-    from .frame import RenderSettings
-    from .gl import headless_context
-    from .lens import Lens
-    from .renderer import Renderer
-    from .synth import benchmark_camera, random_scene
+    from dofview.bench.synth import benchmark_camera, random_scene
+    from dofview.frame import RenderSettings
+    from dofview.lens import Lens
+    from dofview.rendering.gl import headless_context
+    from dofview.rendering.quads import QuadBackend
 
     ctx = headless_context()
     cam = benchmark_camera(*FRAME_SIZE)
@@ -355,7 +360,7 @@ def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3) -> dict
     with Progress("perf: frames", len(sizes) * len(APERTURES), delay=0.0) as bar:
         for n in sizes:
             scene = random_scene(n, degree=degree, seed=6)
-            r = Renderer(scene, ctx)
+            r = QuadBackend(scene, ctx)
             for aperture in APERTURES:
                 lens = Lens(FOCUS, aperture)
                 row = {"count": n, "degree": degree, "aperture": aperture}
@@ -376,16 +381,16 @@ def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3) -> dict
 def measure_bottleneck(n: int, frames: int) -> dict:
     """What limits the frame: time at A = 0 as the image shrinks (fragment work falls with the pixel
     count, vertex work stays) down to 64×36 (≈ vertex work alone), for SH degree 3 and 0."""
-    from .frame import RenderSettings
-    from .lens import Lens
-    from .renderer import Renderer
-    from .synth import benchmark_camera, random_scene
+    from dofview.bench.synth import benchmark_camera, random_scene
+    from dofview.frame import RenderSettings
+    from dofview.lens import Lens
+    from dofview.rendering.quads import QuadBackend
 
     sizes = (FRAME_SIZE, (FRAME_SIZE[0] // 2, FRAME_SIZE[1] // 2), (FRAME_SIZE[0] // 4, FRAME_SIZE[1] // 4), (64, 36))
     rows = []
     with Progress("perf: bottleneck", 2 * len(sizes), delay=0.0) as bar:
         for degree in (3, 0):
-            r = Renderer(random_scene(n, degree=degree, seed=6))
+            r = QuadBackend(random_scene(n, degree=degree, seed=6))
             for w, h in sizes:
                 cam = benchmark_camera(w, h)
                 row = {"count": n, "degree": degree, "size": [w, h]}
@@ -404,7 +409,7 @@ def plot(results: dict, folder: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .atomic import atomic_output
+    from dofview.io.atomic import atomic_output
 
     written = []
 
@@ -502,7 +507,7 @@ def run(only: tuple[str, ...], quick: bool, frame_sizes: tuple[int, ...], cullin
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m dofview.perf", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m dofview.bench.perf", description=__doc__.split("\n")[0])
     ap.add_argument("--only", default=",".join(m for m in MEASUREMENTS if m not in ("frames", "bottleneck")),
                     help=f"comma-separated sub-measurements of {', '.join(MEASUREMENTS)} (default: all but "
                          "frames and bottleneck, whose absolute times need a real GPU to mean anything)")
@@ -524,7 +529,7 @@ def main(argv: list[str] | None = None) -> int:
     text = json.dumps(results, indent=1)
     print(text)
     if args.json:
-        from .atomic import atomic_output
+        from dofview.io.atomic import atomic_output
 
         with atomic_output(args.json) as tmp:
             tmp.write_text(text)

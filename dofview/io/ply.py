@@ -19,9 +19,9 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import DofviewError, DofviewWarning
-from .scene import COLOUR_SPACES, GaussianScene
-from .scenefile import input_size
+from dofview.errors import DofviewError, DofviewWarning
+from dofview.io._common import input_size
+from dofview.scene import COLOUR_SPACES, GaussianScene
 
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
@@ -277,7 +277,7 @@ def scene_rows(scene: GaussianScene) -> np.ndarray:
 
 def write_ply(scene: GaussianScene, path: str | Path) -> None:
     """Write ``scene`` as a binary little-endian 3DGS ``.ply`` (whole or not at all)."""
-    from .atomic import atomic_output
+    from dofview.io.atomic import atomic_output
 
     rows = scene_rows(scene)
     header = ["ply", "format binary_little_endian 1.0", f"comment dofview colour_space {scene.colour_space}",

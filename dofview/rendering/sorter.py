@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import Camera
-from ..sort import front_to_back
+from dofview.camera import Camera
+from dofview.rendering.sort import front_to_back
 
 
 @dataclass

@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from .errors import DofviewError
+from dofview.errors import DofviewError
 
 
 @contextmanager

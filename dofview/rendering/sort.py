@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import Camera
+from dofview.camera import Camera
 
 
 def camera_depths(means: np.ndarray, camera: Camera) -> np.ndarray:

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output
-from .frame import RenderSettings
+from dofview.frame import RenderSettings
+from dofview.io.atomic import atomic_output
 
 
 def _mean(rows: list[dict], key: str) -> float:

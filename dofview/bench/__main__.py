@@ -1,0 +1,5 @@
+import sys
+
+from dofview.bench.cli import main
+
+sys.exit(main())

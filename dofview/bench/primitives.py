@@ -1,0 +1,117 @@
+"""Building blocks of the synthetic scenes in :mod:`dofview.bench.synth`: a parts accumulator that
+concatenates Gaussian groups into one scene, texel grids, rotations and orbit cameras."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from dofview.camera import Camera, look_at
+from dofview.scene import SH_C0, ColourSpace, GaussianScene, sh_coeff_count
+
+IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0], np.float32)
+
+
+def dc_from_colour(colour: np.ndarray) -> np.ndarray:
+    """(…, 3) base colour → (…, 3) float32 SH DC coefficient (colour = SH_C0·dc + 0.5)."""
+    return ((np.asarray(colour, np.float64) - 0.5) / SH_C0).astype(np.float32)
+
+
+def quat_from_matrix(m: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation matrix → (4,) float32 unit quaternion (w, x, y, z)."""
+    m = np.asarray(m, np.float64)
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    # Shepperd's branch choice: divide by the largest of the four candidates for stability.
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+    q = np.array(q)
+    return (q / np.linalg.norm(q)).astype(np.float32)
+
+
+def yaw_matrix(yaw_deg: float) -> np.ndarray:
+    """(3, 3) rotation about the world y axis (the vertical)."""
+    a = math.radians(yaw_deg)
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+@dataclass
+class Parts:
+    """Accumulates Gaussian groups, then concatenates them into one scene."""
+
+    means: list
+    quats: list
+    scales: list
+    opacities: list
+    colours: list
+    rest: list
+
+    @classmethod
+    def empty(cls) -> "Parts":
+        return cls([], [], [], [], [], [])
+
+    def add(self, means, scales, colours, opacities, quats=None, rest=None) -> None:
+        n = len(means)
+        self.means.append(np.asarray(means, np.float32).reshape(n, 3))
+        self.scales.append(np.broadcast_to(np.asarray(scales, np.float32), (n, 3)))
+        self.colours.append(np.broadcast_to(np.asarray(colours, np.float64), (n, 3)))
+        self.opacities.append(np.broadcast_to(np.asarray(opacities, np.float32), (n,)))
+        q = IDENTITY_QUAT if quats is None else quats
+        self.quats.append(np.broadcast_to(np.asarray(q, np.float32), (n, 4)))
+        self.rest.append(rest)
+
+    def build(self, colour_space: ColourSpace, name: str, degree: int = 0) -> GaussianScene:
+        sh_rest = None
+        if degree > 0:
+            k = sh_coeff_count(degree) - 1
+            sh_rest = np.concatenate([
+                np.zeros((len(m), k, 3), np.float32) if r is None else np.asarray(r, np.float32)
+                for m, r in zip(self.means, self.rest)
+            ])
+        return GaussianScene(
+            means=np.concatenate(self.means),
+            quats=np.concatenate(self.quats),
+            scales=np.concatenate(self.scales),
+            opacities=np.concatenate(self.opacities),
+            sh_dc=dc_from_colour(np.concatenate(self.colours)),
+            sh_rest=sh_rest,
+            colour_space=colour_space,
+            name=name,
+        )
+
+
+def grid(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Texel indices (i along u, j along v), each (nv, nu) int."""
+    j, i = np.mgrid[0:nv, 0:nu]
+    return i, j
+
+
+def orbit_cameras(pivot: tuple[float, float, float], angles: list[tuple[float, float]],
+                   width: int, height: int, fov_deg: float) -> list[Camera]:
+    """Cameras on a sphere around ``pivot`` through the origin, all looking at ``pivot``.
+
+    ``angles`` are (yaw, pitch) in degrees: yaw swings the eye to the right (+x) around the
+    vertical, pitch raises it (towards −y) so it looks down. (0, 0) is the canonical camera at
+    the origin looking along +z with R = I, T = 0.
+    """
+    p = np.asarray(pivot, np.float64)
+    radius = float(np.linalg.norm(p))
+    cams = []
+    for k, (yaw, pitch) in enumerate(angles):
+        y, x = math.radians(yaw), math.radians(pitch)
+        offset = radius * np.array([math.sin(y) * math.cos(x), -math.sin(x), -math.cos(y) * math.cos(x)])
+        cam = look_at(p + offset, p, width, height, fov_deg)
+        cams.append(replace(cam, name=f"view_{k:03d}"))
+    return cams

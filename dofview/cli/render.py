@@ -1,0 +1,65 @@
+"""``dofview render``: one view of a scene, headless, to a linear EXR (+ PNG)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from dofview.api import save_render
+from dofview.errors import DofviewError
+from dofview.lens import Lens
+from dofview.options import (
+    add_lens_args,
+    add_scene_args,
+    add_view_args,
+    camera_from_args,
+    lens_from_args,
+    load_scene_arg,
+    settings_from_args,
+    tonemap_from_args,
+)
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("render", help="render a scene headless to a linear HDR EXR (+ PNG)",
+                       description="Render a trained 3DGS scene with depth of field to an EXR holding linear "
+                                   "R, G, B, A (premultiplied) and Z (camera depth), and optionally a PNG.")
+    add_scene_args(p)
+    p.add_argument("-o", "--output", type=Path, required=True, help="output EXR path")
+    p.add_argument("--png", type=Path, help="also write the tonemapped image as PNG")
+    p.add_argument("--half", action="store_true", help="store R, G, B, A as half floats (Z stays float32)")
+    add_view_args(p)
+    add_lens_args(p)
+    p.set_defaults(run=run_render)
+
+
+def run_render(args: argparse.Namespace) -> int:
+    from dofview.rendering.quads import QuadBackend
+
+    if args.output.suffix.lower() != ".exr":
+        raise DofviewError(f"{args.output}: output must be an .exr file")
+    for out in (args.output, args.png):  # before the render, not after it
+        if out is not None and not out.parent.is_dir():
+            raise DofviewError(f"{out}: folder {out.parent} does not exist")
+    settings = settings_from_args(args)
+    tm = tonemap_from_args(args)
+    scene = load_scene_arg(args)
+    camera = camera_from_args(args, scene)
+    renderer = QuadBackend(scene)
+    focus = args.focus
+    if focus == "auto":
+        from dofview.rendering.focus import auto_focus
+
+        focus = auto_focus(renderer.render(camera, Lens(1.0, 0.0), settings))
+        if focus is None:
+            raise DofviewError(f"{args.scene}: nothing under the image centre to focus on; give --focus")
+    lens = lens_from_args(args, camera, float(focus))
+    save_render(renderer, camera, lens, tm, settings, str(args.scene), args.output, args.png, half=args.half,
+                lens_info={"fnumber": args.fnumber, "focal_mm": args.focal_mm, "sensor_mm": args.sensor_mm,
+                           "units_per_metre": args.units_per_metre})
+    print(f"{args.output}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, aperture A={lens.aperture:.4g}, "
+          f"exposure ×{tm.exposure:.4g}" + (f"; {args.png}" if args.png else ""), file=sys.stderr)
+    return 0
+
+

@@ -1,0 +1,194 @@
+"""Command-line options shared by ``render``, ``view``, ``bench`` and ``train``, and the objects
+built from them (scene, camera, lens, tone mapping, splatting settings).
+
+Each value parser rejects a bad value with a one-line argparse error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import shlex
+from pathlib import Path
+from typing import Callable
+
+from dofview.camera import Camera, framing_camera, look_at
+from dofview.errors import DofviewError
+from dofview.frame import OPACITY_NORMS, RenderSettings
+from dofview.io.cameras import load_cameras_json, select_camera
+from dofview.lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
+from dofview.scene import COLOUR_SPACES, GaussianScene
+from dofview.tonemap import Tonemap
+
+
+# ---- value parsers: each rejects a bad value with a one-line argparse error ---------------------
+def number(lo: float | None = None, hi: float | None = None, lo_open: bool = False, hi_open: bool = True,
+            integer: bool = False, what: str = "value") -> Callable[[str], float]:
+    def parse(text: str):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} must be a {'whole number' if integer else 'number'}, got {text!r}")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{what} must be finite, got {text!r}")
+        if lo is not None and (v < lo or (lo_open and v == lo)):
+            raise argparse.ArgumentTypeError(f"{what} must be {'>' if lo_open else '≥'} {lo:g}, got {text}")
+        if hi is not None and (v > hi or (hi_open and v == hi)):
+            raise argparse.ArgumentTypeError(f"{what} must be {'<' if hi_open else '≤'} {hi:g}, got {text}")
+        return v
+    return parse
+
+
+def vec3(text: str) -> tuple[float, float, float]:
+    try:
+        v = tuple(float(p) for p in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers x,y,z, got {text!r}")
+    return v  # type: ignore[return-value]
+
+
+def colour(text: str) -> tuple[float, float, float]:
+    v = vec3(text)
+    if not all(0.0 <= x <= 1.0 for x in v):
+        raise argparse.ArgumentTypeError(f"colour components must be in [0, 1], got {text!r}")
+    return v
+
+
+def focus_value(text: str) -> float | str:
+    if text == "auto":
+        return text
+    if text in ("inf", "infinity"):
+        return math.inf
+    return number(0.0, None, lo_open=True, what="focus distance")(text)
+
+
+def tau_value(text: str) -> float:
+    """τ as a number or a fraction such as 2/255."""
+    num, _, den = text.partition("/")
+    try:
+        v = float(num) / float(den) if den else float(num)
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"tau must be a number such as 0.008 or 2/255, got {text!r}")
+    if not (0.0 <= v < 1.0):
+        raise argparse.ArgumentTypeError(f"tau must be in [0, 1), got {text}")
+    return v
+
+
+# ---- shared option groups -----------------------------------------------------------------------
+def add_scene_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", type=Path, help="trained 3DGS scene (.ply or .splat)")
+    p.add_argument("--colour-space", "--color-space", choices=COLOUR_SPACES,
+                   help="override the scene's colour space (default: from the file; standard 3DGS files are srgb)")
+
+
+def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (800, 600)) -> None:
+    g = p.add_argument_group("camera")
+    g.add_argument("--width", type=number(1, None, integer=True, what="width"), help=f"image width (default {default_size[0]}, or the camera's)")
+    g.add_argument("--height", type=number(1, None, integer=True, what="height"), help=f"image height (default {default_size[1]}, or the camera's)")
+    g.add_argument("--cameras", type=Path, help="Inria cameras.json")
+    g.add_argument("--view", default="0", help="camera index or image name in --cameras (default 0)")
+    g.add_argument("--eye", type=vec3, help="camera position x,y,z (scene units)")
+    g.add_argument("--target", type=vec3, help="point looked at x,y,z (scene units)")
+    g.add_argument("--fov", type=number(0, 180, lo_open=True, what="field of view"), help="horizontal field of view, degrees (default 50)")
+    g.add_argument("--near", type=number(0, None, lo_open=True, what="near plane"), default=0.01, help="near plane, scene units (default 0.01)")
+
+
+def add_lens_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("lens")
+    g.add_argument("--focus", type=focus_value, default="auto", help="focus distance (camera depth, scene units), 'inf', or 'auto' = median depth under the image centre (default)")
+    g.add_argument("--aperture", type=number(0, None, hi_open=False, what="aperture"), help="aperture strength A, px·scene unit: CoC radius R = A/2·|1/z − 1/d_f| (default 0 = pinhole)")
+    g.add_argument("--fnumber", type=number(0, None, lo_open=True, what="f-number"), help="physical lens: f-number N (with --focal-mm)")
+    g.add_argument("--focal-mm", type=number(0, None, lo_open=True, what="focal length"), help="physical lens: focal length in mm")
+    g.add_argument("--sensor-mm", type=number(0, None, lo_open=True, what="sensor width"), default=36.0, help="physical lens: sensor width in mm (default 36)")
+    g.add_argument("--units-per-metre", "--units-per-meter", type=number(0, None, lo_open=True, what="units per metre"), default=1.0, help="physical lens: scene units per metre (default 1)")
+    g = p.add_argument_group("image")
+    g.add_argument("--exposure", type=number(-60, 60, hi_open=False, what="exposure"), default=0.0, help="exposure in EV stops, multiplier 2^EV (default 0)")
+    g.add_argument("--shutter", type=number(0, None, lo_open=True, what="shutter time"), help="exposure time t in seconds: exposure = t/N² with --fnumber (Eq. 7), instead of --exposure")
+    g.add_argument("--gamma", type=number(0, None, lo_open=True, what="gamma"), default=2.2, help="display gamma (default 2.2)")
+    g.add_argument("--background", type=colour, default=(0.0, 0.0, 0.0), help="display background r,g,b in [0,1] (PNG only; default black)")
+    g = p.add_argument_group("splatting")
+    g.add_argument("--tau", type=tau_value, default=RenderSettings.tau, help=f"minimum alpha τ in [0, 1), e.g. 2/255 (default {RenderSettings.tau * 255:g}/255)")
+    g.add_argument("--k", type=number(0, None, hi_open=False, what="k"), default=RenderSettings.k, help=f"aperture covariance scale k (default {RenderSettings.k:g})")
+    g.add_argument("--opacity-norm", choices=OPACITY_NORMS, default=RenderSettings.opacity_norm, help=f"opacity normalisation under blur (default {RenderSettings.opacity_norm})")
+    g.add_argument("--blend-linear", action="store_true", help="decode splat colours to linear light before blending (sRGB scenes)")
+
+
+# ---- building objects from arguments ------------------------------------------------------------
+def load_scene_arg(args: argparse.Namespace, progress: bool = True) -> GaussianScene:
+    from dofview.io import load_scene
+
+    scene = load_scene(args.scene, progress=progress)
+    if args.colour_space:
+        scene.colour_space = args.colour_space
+    return scene
+
+
+def camera_from_args(args: argparse.Namespace, scene: GaussianScene, default_size=(800, 600)) -> Camera:
+    if args.cameras and (args.eye or args.target):
+        raise DofviewError("use either --cameras/--view or --eye/--target, not both")
+    physical_fov = None
+    if getattr(args, "focal_mm", None) and args.fov is None:
+        physical_fov = math.degrees(2 * math.atan(args.sensor_mm / (2 * args.focal_mm)))
+    if args.cameras:
+        cam = select_camera(load_cameras_json(args.cameras), args.view, str(args.cameras))
+        w = args.width or (round(cam.width * args.height / cam.height) if args.height else cam.width)
+        h = args.height or (round(cam.height * args.width / cam.width) if args.width else cam.height)
+        return cam.resized(w, h)
+    w, h = args.width or default_size[0], args.height or default_size[1]
+    fov = args.fov or physical_fov or 50.0
+    if args.eye or args.target:
+        if not (args.eye and args.target):
+            raise DofviewError("--eye and --target go together")
+        return look_at(args.eye, args.target, w, h, fov)
+    return framing_camera(scene, w, h, fov)
+
+
+def lens_from_args(args: argparse.Namespace, camera: Camera, focus: float) -> Lens:
+    physical = args.fnumber is not None or args.focal_mm is not None
+    if physical and args.aperture is not None:
+        raise DofviewError("give the aperture either as --aperture A or as --fnumber/--focal-mm, not both")
+    if physical:
+        if args.fnumber is None or args.focal_mm is None:
+            raise DofviewError("a physical lens needs both --fnumber and --focal-mm")
+        return PhysicalLens(args.focal_mm, args.fnumber, args.sensor_mm, args.units_per_metre).lens(camera.fx, focus)
+    return Lens(focus=focus, aperture=args.aperture or 0.0)
+
+
+def tonemap_from_args(args: argparse.Namespace) -> Tonemap:
+    if args.shutter is not None:
+        if args.fnumber is None:
+            raise DofviewError("--shutter needs --fnumber (exposure = t/N²)")
+        exposure = exposure_from_shutter(args.shutter, args.fnumber)
+    else:
+        exposure = exposure_from_ev(args.exposure)
+    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background)
+
+
+def settings_from_args(args: argparse.Namespace) -> RenderSettings:
+    return RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm,
+                          blend_linear=args.blend_linear, near=args.near)
+
+
+def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings,
+                        colour_space: str, out: str = "out.exr") -> str:
+    """A ``dofview render`` line that reproduces a view (used by the viewer's "copy as command")."""
+    eye = camera.centre
+    target = eye + camera.forward * (lens.focus if math.isfinite(lens.focus) else 1.0)
+    fov = camera.fov_x_deg
+    parts = ["dofview", "render", shlex.quote(scene_path), "-o", shlex.quote(out),
+             "--width", str(camera.width), "--height", str(camera.height),
+             # "--eye=…" form: argparse would take a value like "-1.5,0,2" for an option
+             "--eye=" + ",".join(f"{v:.6g}" for v in eye), "--target=" + ",".join(f"{v:.6g}" for v in target),
+             "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}", "--aperture", f"{lens.aperture:.6g}",
+             "--exposure", f"{math.log2(tm.exposure):.6g}", "--gamma", f"{tm.gamma:.6g}",
+             "--tau", f"{settings.tau:.6g}", "--k", f"{settings.k:.6g}", "--opacity-norm", settings.opacity_norm,
+             "--colour-space", colour_space]
+    if any(tm.background):
+        parts += ["--background", ",".join(f"{c:.4g}" for c in tm.background)]
+    if settings.blend_linear:
+        parts.append("--blend-linear")
+    return " ".join(parts)
+
+

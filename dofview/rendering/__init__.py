@@ -1,0 +1,52 @@
+"""From scene, camera and lens to a frame: the GPU backends behind one interface
+(:class:`~dofview.rendering.base.Renderer`), the sort, the CPU reference renderer and the
+thin-lens accumulation that is the ground truth for depth of field. The GLSL is in ``glsl/``.
+
+:data:`BACKENDS` is the one place a backend is named; :func:`get_backend` builds one.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import moderngl
+
+from dofview.errors import BackendUnavailable, DofviewError
+from dofview.rendering.base import Renderer
+from dofview.scene import GaussianScene
+
+BACKENDS: dict[str, str] = {
+    "quad": "dofview.rendering.quads:QuadBackend",
+}
+"""Backend name → ``"module:class"``; ``"auto"`` picks among them (see :func:`get_backend`)."""
+
+AUTO_ORDER: tuple[str, ...] = ("quad",)
+"""The order ``"auto"`` tries backends in: the first that this GL can run."""
+
+
+def backend_class(name: str) -> type[Renderer]:
+    if name not in BACKENDS:
+        raise DofviewError(f"unknown renderer backend {name!r}; expected one of {', '.join(['auto', *BACKENDS])}")
+    module, _, cls = BACKENDS[name].partition(":")
+    return getattr(importlib.import_module(module), cls)
+
+
+def get_backend(name: str, scene: GaussianScene, ctx: moderngl.Context | None = None, **kw) -> Renderer:
+    """A renderer for ``scene`` on backend ``name`` (a key of :data:`BACKENDS`, or ``"auto"``).
+
+    Raises:
+        BackendUnavailable: the named backend cannot run on this GL.
+        DofviewError: an unknown name.
+    """
+    if name != "auto":
+        return backend_class(name)(scene, ctx=ctx, **kw)
+    reasons = []
+    for cand in AUTO_ORDER:
+        try:
+            return backend_class(cand)(scene, ctx=ctx, **kw)
+        except BackendUnavailable as e:
+            reasons.append(f"{cand}: {e}")
+    raise BackendUnavailable("no renderer backend runs here (" + "; ".join(reasons) + ")")
+
+
+__all__ = ["BACKENDS", "AUTO_ORDER", "BackendUnavailable", "Renderer", "backend_class", "get_backend"]
