@@ -30,12 +30,14 @@ from dofview.camera import Camera
 from dofview.frame import Frame, RenderSettings
 from dofview.lens import Lens
 from dofview.rendering import Renderer, get_backend
+from dofview.rendering.progressive import render_lens_samples
 from dofview.scene import ColourSpace, GaussianScene
 from dofview.tonemap import Tonemap
+from dofview.tonemap.stats import Stats, StatsSmoother, frame_stats, pooled_stats
 
 
 def load(path: str | Path, *, colour_space: ColourSpace | None = None,
-         progress: bool | Callable[[int, int], None] = False) -> GaussianScene:
+         progress: bool | Callable[[int, int], None] = False, spz_axes: str | None = None) -> GaussianScene:
     """Read a scene file (any format in :data:`dofview.io.READERS`).
 
     Args:
@@ -43,13 +45,15 @@ def load(path: str | Path, *, colour_space: ColourSpace | None = None,
         colour_space: "srgb" (standard 3DGS, fit to display-encoded photos) or "linear" (HDR);
             overrides what the file says.
         progress: a progress bar on stderr (True) or a ``progress(done, total)`` callback.
+        spz_axes: for ``.spz`` files, the axes the data is in: None follows the file (the spec's
+            RUB, converted to dofview's RDF), "rdf" takes it as stored (splat-transform's files).
 
     Raises:
         DofviewError: a missing, unreadable or malformed file, with the path and what is wrong.
     """
     from dofview.io import load_scene
 
-    scene = load_scene(path, progress=progress)
+    scene = load_scene(path, progress=progress, spz_axes=spz_axes)
     if colour_space is not None:
         scene.colour_space = colour_space
     return scene
@@ -88,7 +92,8 @@ def render(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0), *,
 
 
 def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings, colour_space: str,
-               scene_path: str | None = None, lens_info: dict[str, float | None] | None = None) -> dict[str, object]:
+               scene_path: str | None = None, lens_info: dict[str, float | None] | None = None,
+               stats: Stats | None = None) -> dict[str, object]:
     """dofview's EXR header attributes for one view: version, scene, camera, lens, exposure,
     gamma and splatting settings (JSON strings where structured)."""
     header: dict[str, object] = {"dofview:version": __version__}
@@ -100,27 +105,59 @@ def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings
         "dofview:lens": json.dumps({"focus": lens.focus, "aperture": lens.aperture, **(lens_info or {})}),
         "dofview:exposure": tm.exposure,
         "dofview:gamma": tm.gamma,
+        "dofview:tonemap": json.dumps({"operator": tm.operator.name, **tm.operator.params()}),
         "dofview:render": json.dumps({"tau": settings.tau, "k": settings.k, "opacity_norm": settings.opacity_norm,
-                                      "blend_linear": settings.blend_linear, "colour_space": colour_space}),
+                                      "blend_linear": settings.blend_linear, "cut": settings.cut,
+                                      "colour_space": colour_space}),
     })
+    if stats is not None:  # the statistics the PNG was tone mapped with (log2 linear radiance)
+        header["dofview:tonemap_stats"] = stats.to_json()
     return header
+
+
+def joint_stats(renderer: Renderer, cameras: list[Camera], operator, settings: RenderSettings = RenderSettings(),
+                width: int = 256) -> Stats:
+    """Statistics pooled over ``cameras`` (all training views: ``--stats joint``, seed 004 §5.1.6):
+    each view rendered as a pinhole ``width`` pixels wide, its log histograms summed."""
+    frames = []
+    for cam in cameras:
+        frames.append(renderer.render(cam.resized(width, max(1, round(cam.height * width / cam.width))),
+                                      Lens(1.0, 0.0), settings).rgba)
+    return pooled_stats(frames, operator)
 
 
 def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings,
                 scene_path: str, output: Path, png: Path | None = None, half: bool = False,
-                lens_info: dict[str, float | None] | None = None) -> Frame:
+                lens_info: dict[str, float | None] | None = None, header: dict[str, object] | None = None,
+                stats: Stats | None = None, lens_samples: int = 0, smoother: StatsSmoother | None = None,
+                dt: float = 0.0) -> Frame:
     """Render a view and write it as ``dofview render`` does: a linear EXR (exposure applied, Z,
     dofview header) and optionally the PNG tone mapped on the GPU. Shared by the CLI and the
     viewer's Save.
 
     ``lens_info`` holds the physical-lens values for the header (fnumber, focal_mm, sensor_mm,
-    units_per_metre; None where not used).
+    units_per_metre; None where not used); ``header`` adds attributes (a sequence's frame number).
+    ``stats``: statistics for an adaptive ``tm.operator`` (joint or smoothed); default this frame's,
+    from the read-back frame; with ``smoother`` (a sequence: one StatsSmoother for all its frames,
+    ``dt`` the frame interval in seconds) this frame's statistics are smoothed in time first.
+    The EXR stays linear whatever the operator; its header records the operator and the statistics. ``lens_samples`` > 0: the physical thin lens from that many pinhole
+    passes (rendering.progressive, the image the viewer converges to) instead of the single pass.
     """
     from dofview.io.png import write_png
 
-    frame = renderer.render(camera, lens, settings)
-    frame.meta = exr_header(camera, lens, tm, settings, renderer.scene.colour_space, scene_path, lens_info)
+    if lens_samples:
+        frame = render_lens_samples(renderer, camera, lens, settings, lens_samples)
+        header = {"dofview:lens_samples": lens_samples, **(header or {})}
+    else:
+        frame = renderer.render(camera, lens, settings)
+    if tm.operator.adaptive and stats is None:
+        stats = frame_stats(frame.rgba, tm.operator)
+        if smoother is not None:
+            stats = smoother.update(stats, dt)
+    frame.meta = {**exr_header(camera, lens, tm, settings, renderer.scene.colour_space, scene_path, lens_info,
+                               stats if tm.operator.adaptive else None),
+                  **(header or {})}
     frame.save_exr(output, exposure=tm.exposure, half=half)
     if png:
-        write_png(png, renderer.display_image(tm))
+        write_png(png, renderer.display_image(tm, stats=stats))
     return frame

@@ -12,6 +12,7 @@ from dofview.errors import DofviewError
 from dofview.tonemap import Tonemap, display, to_uint8
 
 OPACITY_NORMS: tuple[str, ...] = ("none", "energy", "optical-depth")
+CUT_MODES: tuple[str, ...] = ("drop", "conserve")
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,9 @@ class RenderSettings:
         blend_linear: decode each splat's colour to linear light before blending (only changes
             display-encoded scenes).
         near: near plane, camera z in scene units; Gaussians with z ≤ near are not drawn.
+        cut: how τ cuts a splat (lens.cut_splat): "drop" draws o′ where α ≥ τ and culls splats below
+            τ everywhere (the light of wide, faint blurred splats is lost); "conserve" draws o′ + τ
+            inside the ellipse where that falls to τ, which keeps each splat's whole mass.
     """
 
     tau: float = 1.0 / 255.0  # chosen by docs/BENCHMARKS.md "Speed against error"
@@ -34,6 +38,7 @@ class RenderSettings:
     opacity_norm: str = "energy"
     blend_linear: bool = False
     near: float = 0.01
+    cut: str = "conserve"  # chosen by docs/BENCHMARKS.md "Depth of field against the thin lens"
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.tau < 1.0):
@@ -42,6 +47,8 @@ class RenderSettings:
             raise DofviewError(f"k (aperture covariance scale) must be finite and ≥ 0, got {self.k}")
         if self.opacity_norm not in OPACITY_NORMS:
             raise DofviewError(f"opacity normalisation must be one of {', '.join(OPACITY_NORMS)}")
+        if self.cut not in CUT_MODES:
+            raise DofviewError(f"tau cut must be one of {', '.join(CUT_MODES)}, got {self.cut!r}")
         if not (math.isfinite(self.near) and self.near > 0):
             raise DofviewError(f"near plane must be finite and > 0, got {self.near}")
 
@@ -73,7 +80,7 @@ class Frame:
 
     def display(self, tm: Tonemap | None = None) -> np.ndarray:
         """(H, W, 3) uint8 display image."""
-        return to_uint8(display(self.rgba, self.encoded, tm or Tonemap()))
+        return to_uint8(display(self.rgba, self.encoded, tm or Tonemap(), depth=self.depth))
 
     def save_exr(self, path: str | Path, *, exposure: float = 1.0, half: bool = False) -> None:
         """Write R, G, B, A (linear, premultiplied, × ``exposure``; float32 or half) and Z (float32)

@@ -110,6 +110,7 @@ def exposure_from_shutter(t: float, fnumber: float) -> float:
 # it; rendering/glsl/quads.vert is its GPU twin, held equal by the GL-vs-reference tests)
 LOW_PASS = 0.3  # px², the reference rasteriser's screen-space low-pass filter
 ALPHA_MAX = 0.99
+SUPPORT_MAX = 9.0  # dᵀΣ⁻¹d at 3σ: the support cut whatever τ
 
 
 def coc(inv_z, aperture, inv_focus):
@@ -131,6 +132,19 @@ def blur_footprint(sxx, sxy, syy, det_p, radius, k):
     det = det_p + add * trace + add * add
     beta = (det0 / det) ** 0.5
     return sxx + add, sxy, syy + add, det, beta
+
+
+def cut_splat(opacity, tau: float, mode: str, xp=np):
+    """The τ cut of splats of opacity o′ (lens.glsl's cut_splat): returns (kept, opacity drawn,
+    support bound r2 on dᵀΣ′⁻¹d, ≤ 9). "drop": o′ where α ≥ τ, q ≤ 2 ln(o′/τ), culled when
+    o′ < τ; "conserve": o′ + τ inside q ≤ 2 ln(1 + o′/τ), which carries the untruncated mass."""
+    o = opacity
+    if tau > 0 and mode == "conserve":
+        return o > 0, o + tau, xp.minimum(2.0 * xp.log1p(o / tau), SUPPORT_MAX)
+    kept = (o > 0) & (xp.minimum(o, ALPHA_MAX) >= tau)
+    if tau == 0:
+        return kept, o, xp.full_like(o, SUPPORT_MAX)
+    return kept, o, xp.minimum(2.0 * xp.log(xp.maximum(o, 1e-300) / tau), SUPPORT_MAX)
 
 
 def normalise_opacity(opacity, beta, mode: str, xp=np):

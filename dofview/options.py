@@ -9,16 +9,23 @@ from __future__ import annotations
 import argparse
 import math
 import shlex
+import sys
 from pathlib import Path
 from typing import Callable
 
-from dofview.camera import Camera, framing_camera, look_at
+from dofview.camera import Camera, look_at
 from dofview.errors import DofviewError
 from dofview.frame import OPACITY_NORMS, RenderSettings
+from dofview.framing import UP_AXES, UpGuess, guess_up, overview_camera
 from dofview.io.cameras import load_cameras_json, select_camera
+from dofview.io.spz import AXES as SPZ_AXES
 from dofview.lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
+from dofview.rendering import AUTO_ORDER, BACKENDS
 from dofview.scene import COLOUR_SPACES, GaussianScene
 from dofview.tonemap import Tonemap
+
+
+RASTERS: tuple[str, ...] = ("auto", *BACKENDS)
 
 
 # ---- value parsers: each rejects a bad value with a one-line argparse error ---------------------
@@ -64,6 +71,30 @@ def focus_value(text: str) -> float | str:
     return number(0.0, None, lo_open=True, what="focus distance")(text)
 
 
+def up_value(text: str) -> str:
+    """An axis label such as -y, or a direction x,y,z (kept as text: :class:`UpGuess` reads it)."""
+    if text in UP_AXES:
+        return text
+    try:
+        v = vec3(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"up must be one of {', '.join(UP_AXES)} or a direction x,y,z, "
+                                         f"got {text!r}") from None
+    if not any(v):
+        raise argparse.ArgumentTypeError(f"up must not be the zero vector, got {text!r}")
+    return ",".join(f"{c:.17g}" for c in v)
+
+
+def focus_or_pull(text: str) -> float | str | tuple:
+    """A focus value, or ``A:B`` (each a value or auto): a focus pull from A to B over a sequence."""
+    near, sep, far = text.partition(":")
+    if not sep:
+        return focus_value(text)
+    if not near or not far:
+        raise argparse.ArgumentTypeError(f"a focus pull is written A:B, e.g. 2:8, got {text!r}")
+    return focus_value(near), focus_value(far)
+
+
 def tau_value(text: str) -> float:
     """τ as a number or a fraction such as 2/255."""
     num, _, den = text.partition("/")
@@ -78,9 +109,17 @@ def tau_value(text: str) -> float:
 
 # ---- shared option groups -----------------------------------------------------------------------
 def add_scene_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scene", type=Path, help="trained 3DGS scene (.ply or .splat)")
+    from dofview.io import READERS
+
+    p.add_argument("scene", type=Path, help=f"trained 3DGS scene ({', '.join(READERS)}; a SOG folder), or a run "
+                                            "folder holding point_cloud/iteration_N/point_cloud.ply and cameras.json")
+    p.add_argument("--iteration", type=number(0, None, integer=True, what="iteration"),
+                   help="run folder: the training iteration to open (default the highest)")
     p.add_argument("--colour-space", "--color-space", choices=COLOUR_SPACES,
                    help="override the scene's colour space (default: from the file; standard 3DGS files are srgb)")
+    p.add_argument("--spz-axes", choices=SPZ_AXES,
+                   help="the axes a .spz file's data is in: rub = the SPZ spec (default, or what the file records), "
+                        "rdf = PLY axes as stored (files written by splat-transform)")
 
 
 def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (800, 600)) -> None:
@@ -93,11 +132,20 @@ def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (8
     g.add_argument("--target", type=vec3, help="point looked at x,y,z (scene units)")
     g.add_argument("--fov", type=number(0, 180, lo_open=True, what="field of view"), help="horizontal field of view, degrees (default 50)")
     g.add_argument("--near", type=number(0, None, lo_open=True, what="near plane"), default=0.01, help="near plane, scene units (default 0.01)")
+    g.add_argument("--up", type=up_value, help=f"world up: {'|'.join(UP_AXES)} or a direction x,y,z "
+                                               "(default: guessed from the scene's ground; with cameras, theirs)")
+    p.add_argument("--raster", choices=RASTERS, default="auto",
+                   help="renderer backend: quad (instanced quads, the reference), compute (tile rasteriser in "
+                        "compute shaders, OpenGL 4.3), auto (default: the first of "
+                        f"{', '.join(AUTO_ORDER)} that runs here, in the order measured fastest)")
 
 
-def add_lens_args(p: argparse.ArgumentParser) -> None:
+def add_lens_args(p: argparse.ArgumentParser, focus_pull: bool = False) -> None:
+    """``focus_pull``: --focus also takes A:B (a sequence's focus pull)."""
     g = p.add_argument_group("lens")
-    g.add_argument("--focus", type=focus_value, default="auto", help="focus distance (camera depth, scene units), 'inf', or 'auto' = median depth under the image centre (default)")
+    g.add_argument("--focus", type=focus_or_pull if focus_pull else focus_value, default="auto",
+                   help="focus distance (camera depth, scene units), 'inf', or 'auto' = median depth under the image "
+                        "centre (default)" + ("; A:B pulls focus from A to B over --frames" if focus_pull else ""))
     g.add_argument("--aperture", type=number(0, None, hi_open=False, what="aperture"), help="aperture strength A, px·scene unit: CoC radius R = A/2·|1/z − 1/d_f| (default 0 = pinhole)")
     g.add_argument("--fnumber", type=number(0, None, lo_open=True, what="f-number"), help="physical lens: f-number N (with --focal-mm)")
     g.add_argument("--focal-mm", type=number(0, None, lo_open=True, what="focal length"), help="physical lens: focal length in mm")
@@ -108,6 +156,7 @@ def add_lens_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--shutter", type=number(0, None, lo_open=True, what="shutter time"), help="exposure time t in seconds: exposure = t/N² with --fnumber (Eq. 7), instead of --exposure")
     g.add_argument("--gamma", type=number(0, None, lo_open=True, what="gamma"), default=2.2, help="display gamma (default 2.2)")
     g.add_argument("--background", type=colour, default=(0.0, 0.0, 0.0), help="display background r,g,b in [0,1] (PNG only; default black)")
+    add_tonemap_args(g)
     g = p.add_argument_group("splatting")
     g.add_argument("--tau", type=tau_value, default=RenderSettings.tau, help=f"minimum alpha τ in [0, 1), e.g. 2/255 (default {RenderSettings.tau * 255:g}/255)")
     g.add_argument("--k", type=number(0, None, hi_open=False, what="k"), default=RenderSettings.k, help=f"aperture covariance scale k (default {RenderSettings.k:g})")
@@ -118,8 +167,18 @@ def add_lens_args(p: argparse.ArgumentParser) -> None:
 # ---- building objects from arguments ------------------------------------------------------------
 def load_scene_arg(args: argparse.Namespace, progress: bool = True) -> GaussianScene:
     from dofview.io import load_scene
+    from dofview.io.runfolder import find_run
 
-    scene = load_scene(args.scene, progress=progress)
+    run = find_run(args.scene, getattr(args, "iteration", None))
+    args.scene = run.scene
+    explicit = getattr(args, "cameras", None) is not None or getattr(args, "eye", None) or getattr(args, "target", None)
+    if run.cameras is not None and hasattr(args, "cameras") and not explicit:  # --cameras or --eye/--target win
+        args.cameras = run.cameras
+        note(args, run.describe(len(load_cameras_json(run.cameras))))
+    elif run.root is not None:
+        note(args, run.describe())
+    scene = load_scene(args.scene, progress=progress, spz_axes=getattr(args, "spz_axes", None),
+                       report=lambda line: print(line, file=sys.stderr))
     if args.colour_space:
         scene.colour_space = args.colour_space
     return scene
@@ -136,13 +195,39 @@ def camera_from_args(args: argparse.Namespace, scene: GaussianScene, default_siz
         w = args.width or (round(cam.width * args.height / cam.height) if args.height else cam.width)
         h = args.height or (round(cam.height * args.width / cam.width) if args.width else cam.height)
         return cam.resized(w, h)
-    w, h = args.width or default_size[0], args.height or default_size[1]
+    dw, dh = default_size
+    w = args.width or (round(dw * args.height / dh) if args.height else dw)
+    h = args.height or (round(dh * args.width / dw) if args.width else dh)
     fov = args.fov or physical_fov or 50.0
     if args.eye or args.target:
         if not (args.eye and args.target):
             raise DofviewError("--eye and --target go together")
-        return look_at(args.eye, args.target, w, h, fov)
-    return framing_camera(scene, w, h, fov)
+        return look_at(args.eye, args.target, w, h, fov, UpGuess(args.up).vector if args.up else (0.0, -1.0, 0.0))
+    return overview_camera(scene, w, h, fov, up_from_args(args, scene).vector)
+
+
+def up_from_args(args: argparse.Namespace, scene: GaussianScene) -> UpGuess:
+    """World up for a scene without cameras: ``--up``, else guessed (and noted, once)."""
+    if getattr(args, "up_guess", None) is None:
+        if getattr(args, "up", None):
+            args.up_guess = UpGuess(args.up, "--up")
+        else:
+            args.up_guess = guess_up(scene)
+            note(args, f"up axis {args.up_guess.label} (guessed: {args.up_guess.reason}; --up overrides)")
+    return args.up_guess
+
+
+def note(args: argparse.Namespace, line: str) -> None:
+    """Keep a line about what was found or guessed (run folder, cameras, up axis) for :func:`say_notes`."""
+    args.notes = [*getattr(args, "notes", []), line]
+
+
+def say_notes(args: argparse.Namespace) -> None:
+    """Print the noted lines to stderr, once: commands call it when their work is under way, so that
+    a mistake found earlier stays a one-line error."""
+    for line in getattr(args, "notes", []):
+        print(line, file=sys.stderr)
+    args.notes = []
 
 
 def lens_from_args(args: argparse.Namespace, camera: Camera, focus: float) -> Lens:
@@ -156,6 +241,40 @@ def lens_from_args(args: argparse.Namespace, camera: Camera, focus: float) -> Le
     return Lens(focus=focus, aperture=args.aperture or 0.0)
 
 
+def add_tonemap_args(g) -> None:
+    """--tonemap NAME (choices: dofview.tonemap.OPERATORS), --stats, and one flag per operator
+    parameter, --NAME-PARAM (e.g. --reinhard05-b 0.5), from the operators' dataclass fields."""
+    from dataclasses import fields
+
+    from dofview.tonemap import OPERATORS
+
+    g.add_argument("--tonemap", choices=list(OPERATORS), default="clip",
+                   help="tone-mapping operator for the PNG and the screen; the EXR stays linear (default clip = Eq. 7)")
+    g.add_argument("--stats", choices=("frame", "joint"), default="frame",
+                   help="statistics of adaptive operators: this frame's, or pooled over all views of --cameras (default frame)")
+    for name, cls in OPERATORS.items():
+        for f in fields(cls):
+            g.add_argument(f"--{name}-{f.name.replace('_', '-')}", dest=f"tm_{name}_{f.name}",
+                           type=number(integer=f.type == "int", what=f"{name} {f.name}"), metavar="V",
+                           help=f"{name}: {f.name} (default {f.default:g}; see dofview.tonemap.{cls.__module__.rsplit('.', 1)[1]})")
+
+
+def operator_from_args(args: argparse.Namespace):
+    """The --tonemap operator with its --NAME-PARAM flags; a flag for another operator is an error."""
+    from dataclasses import fields
+
+    from dofview.tonemap import OPERATORS
+
+    name = getattr(args, "tonemap", "clip")
+    for other, cls in OPERATORS.items():
+        given = [f.name for f in fields(cls) if getattr(args, f"tm_{other}_{f.name}", None) is not None]
+        if other != name and given:
+            raise DofviewError(f"--{other}-{given[0].replace('_', '-')} needs --tonemap {other}")
+    cls = OPERATORS[name]
+    return cls(**{f.name: getattr(args, f"tm_{name}_{f.name}") for f in fields(cls)
+                  if getattr(args, f"tm_{name}_{f.name}", None) is not None})
+
+
 def tonemap_from_args(args: argparse.Namespace) -> Tonemap:
     if args.shutter is not None:
         if args.fnumber is None:
@@ -163,7 +282,7 @@ def tonemap_from_args(args: argparse.Namespace) -> Tonemap:
         exposure = exposure_from_shutter(args.shutter, args.fnumber)
     else:
         exposure = exposure_from_ev(args.exposure)
-    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background)
+    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background, operator=operator_from_args(args))
 
 
 def settings_from_args(args: argparse.Namespace) -> RenderSettings:
@@ -181,12 +300,16 @@ def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap
              "--width", str(camera.width), "--height", str(camera.height),
              # "--eye=…" form: argparse would take a value like "-1.5,0,2" for an option
              "--eye=" + ",".join(f"{v:.6g}" for v in eye), "--target=" + ",".join(f"{v:.6g}" for v in target),
+             "--up=" + ",".join(f"{v:.6g}" for v in -camera.R[1]),  # image-up: keeps the camera's roll
              "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}", "--aperture", f"{lens.aperture:.6g}",
              "--exposure", f"{math.log2(tm.exposure):.6g}", "--gamma", f"{tm.gamma:.6g}",
              "--tau", f"{settings.tau:.6g}", "--k", f"{settings.k:.6g}", "--opacity-norm", settings.opacity_norm,
              "--colour-space", colour_space]
     if any(tm.background):
         parts += ["--background", ",".join(f"{c:.4g}" for c in tm.background)]
+    if tm.operator.name != "clip":
+        parts += ["--tonemap", tm.operator.name]
+        parts += [f"--{tm.operator.name}-{k.replace('_', '-')}={v:.6g}" for k, v in tm.operator.params().items()]
     if settings.blend_linear:
         parts.append("--blend-linear")
     return " ".join(parts)

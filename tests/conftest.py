@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from dofview.bench.metrics import psnr  # noqa: F401  (tests import it from here
+from dofview.rendering import BACKENDS, backend_class
 from dofview.scene import GaussianScene
 
 
@@ -18,6 +19,46 @@ def random_scene(n: int = 1500, degree: int = 0, seed: int = 0, colour_space: st
         sh_rest=rest,
         colour_space=colour_space,
     )
+
+
+def mutate_bytes(data, base: bytes, kinds=("flip", "cut", "insert", "delete", "digit", "word")) -> bytes:
+    """1–4 mutations of ``base`` drawn with hypothesis ``data``: byte flips, cuts, insertions,
+    deletions, ASCII digits changed (header counts) and 32-bit words overwritten (binary counts
+    and sizes)."""
+    from hypothesis import strategies as st
+
+    b = bytearray(base)
+    for _ in range(data.draw(st.integers(1, 4))):
+        kind = data.draw(st.sampled_from(kinds))
+        pos = data.draw(st.integers(0, max(len(b) - 1, 0)))
+        if kind == "flip" and b:
+            b[pos] = data.draw(st.integers(0, 255))
+        elif kind == "cut":
+            del b[pos:]
+        elif kind == "insert":
+            b[pos:pos] = data.draw(st.binary(min_size=1, max_size=16))
+        elif kind == "delete":
+            del b[pos:pos + data.draw(st.integers(1, 16))]
+        elif kind == "digit":  # numbers in the header (counts) and ASCII bodies
+            digits = [i for i, c in enumerate(b) if 0x30 <= c <= 0x39]
+            if digits:
+                b[data.draw(st.sampled_from(digits))] = data.draw(st.sampled_from(b"0123456789-.e"))
+        elif kind == "word" and len(b) >= 4:
+            pos = min(pos, len(b) - 4)
+            b[pos:pos + 4] = data.draw(st.sampled_from([0, 1, 255, 2**16, 2**31, 2**32 - 1])).to_bytes(4, "little")
+    return bytes(b)
+
+
+def assert_valid_scene(scene: GaussianScene) -> None:
+    """What every reader promises of a scene it returns: matching counts, finite values, positive
+    scales, opacities in [0, 1], unit quaternions (the fuzz tests' check)."""
+    assert isinstance(scene, GaussianScene)
+    n = scene.count
+    for a in (scene.means, scene.scales, scene.quats, scene.opacities, scene.sh_dc):
+        assert a.shape[0] == n and np.isfinite(a).all()
+    assert scene.sh_rest is None or np.isfinite(scene.sh_rest).all()
+    assert np.all(scene.scales > 0) and np.all((scene.opacities >= 0) & (scene.opacities <= 1))
+    np.testing.assert_allclose(np.linalg.norm(scene.quats, axis=1), 1.0, atol=1e-5)
 
 
 def assert_matches_reference(gl, reference, min_psnr=45.0, depth_rtol=1e-3, max_near_cut=0.005):
@@ -39,3 +80,9 @@ def assert_matches_reference(gl, reference, min_psnr=45.0, depth_rtol=1e-3, max_
 @pytest.fixture
 def small_scene() -> GaussianScene:
     return random_scene()
+
+
+@pytest.fixture(params=sorted(BACKENDS))
+def backend(request):
+    """Each renderer backend's class (dofview.rendering.BACKENDS), for the tests every backend must pass."""
+    return backend_class(request.param)

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import assert_matches_reference, random_scene
+from conftest import assert_matches_reference, psnr, random_scene
 
 from dofview.camera import look_at
 from dofview.frame import RenderSettings
@@ -11,7 +11,7 @@ from dofview.rendering.accumulate import accumulate
 from dofview.rendering.quads import QuadBackend
 from dofview.rendering.reference import render_reference
 from dofview.scene import GaussianScene
-from dofview.tonemap import Tonemap, display, to_uint8
+from dofview.tonemap import OPERATORS, Tonemap, display, to_uint8
 
 TAUS = [0.0, 1 / 255, 2 / 255]
 CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
@@ -20,31 +20,32 @@ CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
 @pytest.mark.parametrize("degree", [0, 1, 2, 3])
 @pytest.mark.parametrize("aperture", [0.0, 30.0, 120.0])
 @pytest.mark.parametrize("tau", TAUS)
-def test_gl_matches_cpu_reference(degree, aperture, tau):
+def test_gl_matches_cpu_reference(backend, degree, aperture, tau):
     """The renderer's math, in its float32 storage layout, against the float64 reference.
     (The packed layout's own error is measured against this one in test_packing.py.)"""
     scene = random_scene(degree=degree, seed=degree)
     settings = RenderSettings(tau=tau)
     lens = Lens(focus=4.5, aperture=aperture)
-    gl = QuadBackend(scene, packed=False).render(CAM, lens, settings)
+    gl = backend(scene, packed=False).render(CAM, lens, settings)
     ref = render_reference(scene, CAM, lens, settings, margins=True)
     assert_matches_reference(gl, ref)
 
 
 @pytest.mark.parametrize("norm", ["none", "energy", "optical-depth"])
 @pytest.mark.parametrize("blend_linear", [False, True])
-def test_gl_matches_reference_for_every_option(norm, blend_linear):
+@pytest.mark.parametrize("cut", ["drop", "conserve"])
+def test_gl_matches_reference_for_every_option(backend, norm, blend_linear, cut):
     scene = random_scene(seed=7, colour_space="srgb")
-    settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear)
+    settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear, cut=cut)
     lens = Lens(focus=3.0, aperture=80.0)
-    assert_matches_reference(QuadBackend(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
+    assert_matches_reference(backend(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
 
 
-def test_linear_hdr_scene_matches_reference():
+def test_linear_hdr_scene_matches_reference(backend):
     scene = random_scene(seed=3, colour_space="linear")
     scene.sh_dc *= 40.0  # radiance far above 1
     lens = Lens(focus=6.0, aperture=50.0)
-    gl = QuadBackend(scene, packed=False).render(CAM, lens)
+    gl = backend(scene, packed=False).render(CAM, lens)
     ref = render_reference(scene, CAM, lens, margins=True)
     assert ref[0].rgba.max() > 10
     assert_matches_reference(gl, ref)
@@ -100,14 +101,27 @@ def test_single_gaussian_blur_matches_thin_lens_second_moment():
     assert m1 == pytest.approx(m2, rel=0.02)  # energy-preserving opacity keeps the total
 
 
-def test_gpu_tonemap_matches_numpy():
-    scene = random_scene(seed=5)
+@pytest.mark.parametrize("operator", list(OPERATORS))
+@pytest.mark.parametrize("colour_space", ["srgb", "linear"])
+def test_gpu_tonemap_matches_numpy(operator, colour_space):
+    """Every operator's GLSL pass against its numpy twin (≥ 45 dB, clip within one 8-bit step),
+    with the statistics from the read-back frame; and the GPU statistics equal the CPU ones."""
+    from dofview.tonemap.stats import frame_stats
+
+    scene = random_scene(seed=5, colour_space=colour_space)
     r = QuadBackend(scene)
-    for tm in (Tonemap(), Tonemap(exposure=4.0, gamma=2.2, background=(0.2, 0.5, 1.0)), Tonemap(exposure=0.3, gamma=1.0)):
+    op = OPERATORS[operator]()
+    for tm in (Tonemap(operator=op), Tonemap(exposure=4.0, gamma=2.2, background=(0.2, 0.5, 1.0), operator=op),
+               Tonemap(exposure=0.3, gamma=1.0, operator=op)):
         frame = r.render(CAM, Lens(4.0, 40.0))
-        gpu = r.display_image(tm).astype(int)
-        cpu = to_uint8(display(frame.rgba, frame.encoded, tm)).astype(int)
-        assert np.abs(gpu - cpu).max() <= 1
+        stats = frame_stats(frame.rgba, op) if op.adaptive else None
+        if op.adaptive:
+            np.testing.assert_allclose(r.frame_stats(op).scalars(), stats.scalars(), atol=1e-3)
+        gpu = r.display_image(tm, stats=stats).astype(int)
+        cpu = to_uint8(display(frame.rgba, frame.encoded, tm, stats, frame.depth)).astype(int)
+        assert psnr(gpu / 255.0, cpu / 255.0) >= 45.0
+        if operator == "clip":
+            assert np.abs(gpu - cpu).max() <= 1
 
 
 def test_srgb_scene_at_zero_ev_reproduces_the_blend():
@@ -141,8 +155,10 @@ def test_culling_counts_and_tau_culls_faint_blurred_gaussians():
     r.draw(CAM, Lens(4.5, 0.0), RenderSettings(tau=0.0), count=True)
     all_drawn = r.stats.drawn
     assert 0 < all_drawn <= scene.count
-    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255), count=True)
+    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255, cut="drop"), count=True)
     assert r.stats.drawn < all_drawn  # blurred o·β fell below τ: those are never drawn
+    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255, cut="conserve"), count=True)
+    assert r.stats.drawn >= all_drawn  # conserving the mass, faint splats shrink instead (blur may bring more on screen)
 
 
 def test_degree0_scene_has_no_sh_buffer_and_degree3_fits_128_bytes():

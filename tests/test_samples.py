@@ -48,14 +48,14 @@ def test_lamp_sample_is_hdr():
 
 @pytest.mark.parametrize("aperture", [0.0, 30.0, 90.0])
 @pytest.mark.parametrize("tau", [0.0, 1 / 255, 2 / 255])
-def test_gl_matches_reference_on_samples(sample, aperture, tau):
+def test_gl_matches_reference_on_samples(backend, sample, aperture, tau):
     """PSNR ≥ 45 dB on the linear image (peak: brightest value), and ≥ 45 dB on the image clipped
     to [0, 1] with peak 1 so the dim surfaces of the HDR sample are held to the same bound; depth
     within 1e-3 relative where α > 0.5."""
     name, scene, cams = sample
     cam = cams[1].resized(120, 90)
     lens, settings = Lens(FOCUS[name], aperture), RenderSettings(tau=tau)
-    gl = QuadBackend(scene, packed=False).render(cam, lens, settings)
+    gl = backend(scene, packed=False).render(cam, lens, settings)
     ref = render_reference(scene, cam, lens, settings, margins=True)
     assert_matches_reference(gl, ref, max_near_cut=0.03)
     assert psnr(np.clip(gl.rgba, 0, 1), np.clip(ref[0].rgba, 0, 1)) >= 45.0

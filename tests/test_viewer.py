@@ -312,3 +312,21 @@ def test_mouse_and_keys(display, tmp_path):
     assert np.dot(after - before, forward) > 0 and np.linalg.norm(np.cross(after - before, forward)) < 1e-6
     assert r["next"]["camera"]["name"] == "view_001"
     assert r["reset"]["camera"]["name"] == "" and r["reset"]["camera"]["T"] != r["next"]["camera"]["T"]
+
+
+def test_compute_backend_sorts_on_the_gpu_without_the_sort_thread(display, tmp_path):
+    """--raster compute: an orbit sends no view to the CPU sort thread, and the window shows the
+    orbited view as the headless quad renderer draws it."""
+    script = [{"do": "frames", "n": 2}, {"do": "report", "path": tmp_path / "start.json"},
+              {"do": "set", "aperture": 30.0}, {"do": "orbit", "dx": 40.0, "dy": 15.0},
+              {"do": "capture", "path": tmp_path / "orbit.png"}, {"do": "report", "path": tmp_path / "orbit.json"},
+              {"do": "quit"}]
+    path = tmp_path / "script.json"
+    path.write_text(json.dumps(script, default=str))
+    res = run_viewer([CARDS_PLY, "--cameras", CARDS_CAMERAS, "--width", WINDOW[0], "--height", WINDOW[1],
+                      "--focus", "4", "--raster", "compute", "--script", path], {**os.environ, "DISPLAY": display})
+    assert res.returncode == 0, res.stderr
+    start, orbit = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("start", "orbit"))
+    assert start["sort_requests"] == orbit["sort_requests"] == 0
+    assert orbit["camera"]["R"] != start["camera"]["R"]
+    assert psnr(read_png(tmp_path / "orbit.png"), headless_display(orbit), 255.0) >= MIN_PSNR

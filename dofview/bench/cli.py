@@ -25,6 +25,7 @@ from dofview.options import (
     focus_value,
     load_scene_arg,
     number,
+    say_notes,
     tau_value,
 )
 from dofview.scene import GaussianScene
@@ -112,6 +113,13 @@ def add_parser(sub) -> None:
     g.add_argument("--tau", type=tau_value, default=RenderSettings.tau, help="base τ (default: the code's default)")
     g.add_argument("--k", type=_fraction, default=RenderSettings.k, help="base k (default: the code's default)")
     g.add_argument("--opacity-norm", type=_norm, default=RenderSettings.opacity_norm, help="base normalisation (default: the code's)")
+    g = p.add_argument_group("real scenes without cameras (dofview.bench.study: against the physical thin lens)")
+    g.add_argument("--views", type=_positive_int, help="instead of the full bench: N look-at views around the scene's "
+                   "robust bounds, the issue-14 table (anchors, default, accumulation) and a speed-error plot")
+    g.add_argument("--focus-pct", type=_list_of(number(0, 100, what="percentile"), "percentiles"), default=(30.0, 70.0),
+                   help="with --views: focus at these percentiles of the pinhole depth (default 30,70)")
+    g.add_argument("--coc-px", type=_list_of(number(0, None, lo_open=True, what="CoC"), "radii"), default=(6.0, 16.0),
+                   help="with --views: apertures whose largest CoC in view (5th-95th depth percentile) has these radii in px (default 6,16)")
     p.set_defaults(run=run)
 
 
@@ -126,12 +134,15 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
     given = {"focus": args.focus, "apertures": args.apertures, "grid_apertures": args.grid_apertures,
              "taus": args.taus, "ks": args.ks, "norms": args.norms, "ref_samples": args.ref_samples,
              "acc_samples": args.acc_samples, "frames": args.frames, "warmup": args.warmup, "counts": args.counts,
-             "count_size": args.count_size, "widths": args.widths}
+             "count_size": args.count_size, "widths": args.widths, "raster": args.raster}
     return replace(cfg, **{k: v for k, v in given.items() if v is not None})
 
 
 def run(args: argparse.Namespace) -> int:
     from dofview.bench.report import write_outputs
+    if args.views:
+        from dofview.bench.study import run_cli
+        return run_cli(args)
     if args.quick and args.width is None and args.height is None:
         args.bench_width = 96
     cfg = config_from_args(args)
@@ -142,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
         raise DofviewError(f"{out}: exists and is not a folder")
     scene = load_scene_arg(args)
     cameras = bench_cameras(args, scene)
+    say_notes(args)
     t0 = time.perf_counter()
     result = run_bench(scene, cameras, cfg, base, tm, scaling=not args.no_scaling)
     out.mkdir(parents=True, exist_ok=True)

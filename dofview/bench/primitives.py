@@ -19,27 +19,6 @@ def dc_from_colour(colour: np.ndarray) -> np.ndarray:
     return ((np.asarray(colour, np.float64) - 0.5) / SH_C0).astype(np.float32)
 
 
-def quat_from_matrix(m: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation matrix → (4,) float32 unit quaternion (w, x, y, z)."""
-    m = np.asarray(m, np.float64)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    # Shepperd's branch choice: divide by the largest of the four candidates for stability.
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q)
-    return (q / np.linalg.norm(q)).astype(np.float32)
-
-
 def yaw_matrix(yaw_deg: float) -> np.ndarray:
     """(3, 3) rotation about the world y axis (the vertical)."""
     a = math.radians(yaw_deg)

@@ -40,7 +40,7 @@ from dofview.lens import Lens
 from dofview.progress import Progress
 from dofview.rendering.accumulate import accumulate
 from dofview.rendering.focus import auto_focus
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering import Renderer, get_backend
 from dofview.rendering.reference import project
 from dofview.rendering.sort import front_to_back
 from dofview.scene import GaussianScene
@@ -92,7 +92,7 @@ def median_sort_ms(scene: GaussianScene, camera: Camera, reps: int) -> float:
     return float(np.median(times))
 
 
-def time_round_robin(jobs: Sequence[tuple[QuadBackend, Camera, Lens, RenderSettings]], timer: FrameTimer,
+def time_round_robin(jobs: Sequence[tuple[Renderer, Camera, Lens, RenderSettings]], timer: FrameTimer,
                      frames: int, warmup: int, tick: Callable[[], None]) -> list[dict]:
     """Time each job ``frames`` times after ``warmup`` rounds, interleaved: every round draws every
     job once, starting one job later each round. Returns per job wall/GPU median and p90 (ms)."""
@@ -119,7 +119,7 @@ def time_round_robin(jobs: Sequence[tuple[QuadBackend, Camera, Lens, RenderSetti
 def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, base: RenderSettings, tm: Tonemap,
               scaling: bool = True, log=print) -> dict:
     """Measure everything (see the module docstring) and return the rows for the outputs."""
-    renderer = QuadBackend(scene)
+    renderer = get_backend(cfg.raster, scene)
     timer = FrameTimer(renderer.ctx)
     encoded = scene.colour_space == "srgb"
     hdr = scene.colour_space == "linear"
@@ -233,7 +233,7 @@ def _find(rows: list[dict], view: int, focus: float, aperture: float, st: Render
     raise KeyError((view, focus, aperture, st))
 
 
-def _scaling(renderer: QuadBackend, scene: GaussianScene, camera: Camera, focus: float, cfg: BenchConfig,
+def _scaling(renderer: Renderer, scene: GaussianScene, camera: Camera, focus: float, cfg: BenchConfig,
              base: RenderSettings, timer: FrameTimer, tick, log) -> list[dict]:
     from dofview.bench.synth import benchmark_camera, random_scene
 
@@ -244,7 +244,7 @@ def _scaling(renderer: QuadBackend, scene: GaussianScene, camera: Camera, focus:
     big = []
     for n in cfg.counts:
         s = random_scene(n)
-        r = QuadBackend(s, ctx=renderer.ctx)
+        r = type(renderer)(s, ctx=renderer.ctx)
         big.append(r)
         f = auto_focus(r.render(cam, Lens(1.0, 0.0), pinhole_settings(base))) or 10.0
         sort_ms = median_sort_ms(s, cam, cfg.scaling_frames)
@@ -262,7 +262,7 @@ def _scaling(renderer: QuadBackend, scene: GaussianScene, camera: Camera, focus:
     for w in cfg.widths:
         h = max(1, round(camera.height * w / camera.width))
         c = camera.resized(w, h)
-        r = QuadBackend(scene, ctx=renderer.ctx)
+        r = type(renderer)(scene, ctx=renderer.ctx)
         big.append(r)
         for ap, st in ((0.0, replace(base, tau=0.0)), (a * w / base_w, base)):
             jobs.append((r, c, Lens(focus, ap), st))

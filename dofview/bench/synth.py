@@ -31,11 +31,16 @@ from dofview.bench.primitives import (
     dc_from_colour,
     grid,
     orbit_cameras,
-    quat_from_matrix,
     yaw_matrix,
 )
 from dofview.camera import Camera, look_at
-from dofview.scene import SH_C0, ColourSpace, GaussianScene, sh_coeff_count
+from dofview.scene import (
+    SH_C0,
+    ColourSpace,
+    GaussianScene,
+    quat_from_matrix,
+    sh_coeff_count,
+)
 
 CANONICAL_FOV_DEG = 60.0
 """Horizontal field of view (degrees) of the sample cameras."""

@@ -37,6 +37,7 @@ class BenchConfig:
     widths: tuple[int, ...] = (320, 640, 1280)
     scaling_aperture: float = 100.0
     scaling_frames: int = 2
+    raster: str = "auto"  # renderer backend (dofview.rendering.BACKENDS, or "auto")
 
 
 QUICK = dict(apertures=(40.0,), grid_apertures=(0.0, 40.0), taus=(0.0, 2 / 255), ks=(1 / 4, 1.0),

@@ -7,8 +7,14 @@ import sys
 from pathlib import Path
 
 from dofview.api import save_render
+from dofview.cli.sequence import (
+    add_sequence_args,
+    auto_focus_at,
+    is_sequence,
+    lens_info,
+    run_sequence,
+)
 from dofview.errors import DofviewError
-from dofview.lens import Lens
 from dofview.options import (
     add_lens_args,
     add_scene_args,
@@ -16,6 +22,8 @@ from dofview.options import (
     camera_from_args,
     lens_from_args,
     load_scene_arg,
+    number,
+    say_notes,
     settings_from_args,
     tonemap_from_args,
 )
@@ -30,34 +38,42 @@ def add_parser(sub) -> None:
     p.add_argument("--png", type=Path, help="also write the tonemapped image as PNG")
     p.add_argument("--half", action="store_true", help="store R, G, B, A as half floats (Z stays float32)")
     add_view_args(p)
-    add_lens_args(p)
+    add_lens_args(p, focus_pull=True)
+    p.add_argument("--lens-samples", type=number(1, None, integer=True, what="lens samples"), default=0,
+                   help="render the physical thin lens as the average of N pinhole passes over the lens disk "
+                        "(what the viewer converges to when still) instead of the single pass")
+    add_sequence_args(p)
     p.set_defaults(run=run_render)
 
 
 def run_render(args: argparse.Namespace) -> int:
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     if args.output.suffix.lower() != ".exr":
         raise DofviewError(f"{args.output}: output must be an .exr file")
-    for out in (args.output, args.png):  # before the render, not after it
+    for out in (args.output, args.png, args.video):  # before the render, not after it
         if out is not None and not out.parent.is_dir():
             raise DofviewError(f"{out}: folder {out.parent} does not exist")
+    if is_sequence(args):
+        return run_sequence(args)
     settings = settings_from_args(args)
     tm = tonemap_from_args(args)
+    if args.stats == "joint" and args.cameras is None:
+        raise DofviewError("--stats joint pools the views of --cameras: give --cameras")
     scene = load_scene_arg(args)
     camera = camera_from_args(args, scene)
-    renderer = QuadBackend(scene)
-    focus = args.focus
-    if focus == "auto":
-        from dofview.rendering.focus import auto_focus
-
-        focus = auto_focus(renderer.render(camera, Lens(1.0, 0.0), settings))
-        if focus is None:
-            raise DofviewError(f"{args.scene}: nothing under the image centre to focus on; give --focus")
+    renderer = get_backend(args.raster, scene)
+    focus = auto_focus_at(renderer, camera, settings, args.scene) if args.focus == "auto" else args.focus
     lens = lens_from_args(args, camera, float(focus))
+    stats = None
+    if args.stats == "joint" and tm.operator.adaptive:
+        from dofview.api import joint_stats
+        from dofview.io.cameras import load_cameras_json
+
+        stats = joint_stats(renderer, load_cameras_json(args.cameras), tm.operator, settings)
     save_render(renderer, camera, lens, tm, settings, str(args.scene), args.output, args.png, half=args.half,
-                lens_info={"fnumber": args.fnumber, "focal_mm": args.focal_mm, "sensor_mm": args.sensor_mm,
-                           "units_per_metre": args.units_per_metre})
+                lens_info=lens_info(args), stats=stats, lens_samples=args.lens_samples)
+    say_notes(args)
     print(f"{args.output}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, aperture A={lens.aperture:.4g}, "
           f"exposure ×{tm.exposure:.4g}" + (f"; {args.png}" if args.png else ""), file=sys.stderr)
     return 0

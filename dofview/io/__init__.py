@@ -9,6 +9,7 @@ Adding a format is one module with ``read_X(path, progress=None) -> GaussianScen
 from __future__ import annotations
 
 import importlib
+import inspect
 from pathlib import Path
 from typing import Callable
 
@@ -17,14 +18,19 @@ from dofview.progress import Progress
 from dofview.scene import GaussianScene
 
 READERS: dict[str, str] = {
-    ".ply": "dofview.io.ply:read_ply",
+    ".ply": "dofview.io.ply:read_ply",  # hands a PLY with a "chunk" element to read_compressed_ply
     ".splat": "dofview.io.splat:read_splat",
+    ".spz": "dofview.io.spz:read_spz",
+    ".compressed.ply": "dofview.io.compressed_ply:read_compressed_ply",
+    ".sog": "dofview.io.sog:read_sog",
+    "meta.json": "dofview.io.sog:read_sog",  # an unbundled SOG (or give its folder)
 }
 """File-name ending (lower case) → ``"module:function"`` that reads it. The longest matching ending wins."""
 
 WRITERS: dict[str, str] = {
     ".ply": "dofview.io.ply:write_ply",
     ".splat": "dofview.io.splat:write_splat",
+    ".spz": "dofview.io.spz:write_spz",
 }
 """File-name ending (lower case) → ``"module:function"`` that writes it."""
 
@@ -40,26 +46,38 @@ def _lookup(table: dict[str, str], path: Path, verb: str) -> Callable:
     return getattr(importlib.import_module(module), func)
 
 
-def load_scene(path: str | Path, progress: bool | Callable[[int, int], None] = True) -> GaussianScene:
+def load_scene(path: str | Path, progress: bool | Callable[[int, int], None] = True,
+               **options: object) -> GaussianScene:
     """Read a scene file; a progress bar shows on stderr when loading takes more than half a second.
     ``progress`` may instead be a ``progress(done, total)`` callback (the viewer's progress bar).
+
+    ``options`` are keyword arguments for the readers that take them, e.g. ``spz_axes="rdf"`` for
+    :func:`dofview.io.spz.read_spz` or ``report=print`` (a one-line note on how the file was read);
+    readers without such a parameter, and options given as None, are left alone.
 
     Raises:
         DofviewError: a missing, unreadable or malformed file, with the path and what is wrong.
     """
     path = Path(path)
+    if path.is_dir() and (path / "meta.json").is_file():  # an unbundled SOG folder
+        path = path / "meta.json"
     reader = _lookup(READERS, path, "read")
     if path.is_dir():
         raise DofviewError(f"{path}: is a directory, not a scene file")
+    accepted = inspect.signature(reader).parameters
+    kwargs = {k: v for k, v in options.items() if k in accepted and v is not None}
     if callable(progress):
-        return reader(path, progress=progress)
+        return reader(path, progress=progress, **kwargs)
     if not progress:
-        return reader(path)
+        return reader(path, **kwargs)
     with Progress(f"loading {path.name}", 1, unit=" Gaussians") as bar:
-        return reader(path, progress=bar)
+        return reader(path, progress=bar, **kwargs)
 
 
-def save_scene(scene: GaussianScene, path: str | Path) -> None:
-    """Write a scene file by extension (whole or not at all)."""
+def save_scene(scene: GaussianScene, path: str | Path, **options: object) -> None:
+    """Write a scene file by extension (whole or not at all); ``options`` go to the writers that
+    take them (e.g. ``spz_axes``), as in :func:`load_scene`."""
     path = Path(path)
-    _lookup(WRITERS, path, "write")(scene, path)
+    writer = _lookup(WRITERS, path, "write")
+    accepted = inspect.signature(writer).parameters
+    writer(scene, path, **{k: v for k, v in options.items() if k in accepted and v is not None})

@@ -157,6 +157,21 @@ def _plyfile_rows(path: Path) -> np.ndarray:
         raise DofviewError(f"{path}: cannot parse PLY body ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
 
 
+def read_header(path: Path) -> tuple[int, str, list[_Element], list[str], int]:
+    """(file size, format, elements, comments, header length in bytes) of a PLY file.
+
+    Raises:
+        DofviewError: the file is missing, unreadable, or its header is not a PLY header.
+    """
+    size = input_size(path)
+    try:
+        with open(path, "rb") as f:
+            head = f.read(MAX_HEADER)
+    except OSError as e:
+        raise DofviewError(f"{path}: cannot read ({e.strerror or e})") from None
+    return (size, *_parse_header(path, head))
+
+
 def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = None) -> GaussianScene:
     """Read a 3DGS ``.ply`` into an activated :class:`GaussianScene` (float32 arrays).
 
@@ -169,13 +184,11 @@ def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = Non
         DofviewError: the file is missing, unreadable, not a 3DGS PLY, or cut short.
     """
     path = Path(path)
-    size = input_size(path)
-    try:
-        with open(path, "rb") as f:
-            head = f.read(MAX_HEADER)
-    except OSError as e:
-        raise DofviewError(f"{path}: cannot read ({e.strerror or e})") from None
-    fmt, elements, comments, header_len = _parse_header(path, head)
+    size, fmt, elements, comments, header_len = read_header(path)
+    if any(e.name == "chunk" for e in elements):  # a PlayCanvas compressed PLY, whatever its name
+        from dofview.io.compressed_ply import read_compressed_ply
+
+        return read_compressed_ply(path, progress)
     vertex = _check_vertex(path, elements)
     _check_body_size(path, fmt, elements, vertex, size - header_len)
     rows = None

@@ -17,11 +17,14 @@ from dofview.scene import GaussianScene
 
 BACKENDS: dict[str, str] = {
     "quad": "dofview.rendering.quads:QuadBackend",
+    "compute": "dofview.rendering.compute:ComputeBackend",
 }
 """Backend name → ``"module:class"``; ``"auto"`` picks among them (see :func:`get_backend`)."""
 
-AUTO_ORDER: tuple[str, ...] = ("quad",)
-"""The order ``"auto"`` tries backends in: the first that this GL can run."""
+AUTO_ORDER: tuple[str, ...] = ("quad", "compute")
+"""The order ``"auto"`` tries backends in: the first that this GL can run. Quad first: measured
+faster on Mesa llvmpipe (docs/BENCHMARKS.md "Compute backend": compute/quad frame time FIGURE);
+not yet measured on a GPU (scripts/gpu_bench.sh), where the order may change."""
 
 
 def backend_class(name: str) -> type[Renderer]:

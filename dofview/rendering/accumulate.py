@@ -29,17 +29,19 @@ def lens_samples(n: int) -> np.ndarray:
 
 
 def accumulate(render_pinhole: Callable[[Camera], Frame], camera: Camera, lens: Lens, samples: int = 256,
-               progress: Callable[[int, int], None] | None = None) -> Frame:
+               progress: Callable[[int, int], None] | None = None, points: np.ndarray | None = None) -> Frame:
     """Average ``samples`` pinhole renders over the aperture of ``lens`` (diameter A / f_x).
 
     ``render_pinhole(camera)`` must render with aperture 0: the GL renderer and the CPU reference
-    both fit. ``progress(i, n)`` is called after each sample.
+    both fit. ``progress(i, n)`` is called after each sample. ``points``: (samples, 2) points of
+    the unit disk to use instead of :func:`lens_samples` (e.g. progressive.disk_sequence).
     """
     if samples < 1:
         raise ValueError("samples must be ≥ 1")
     radius = 0.5 * lens.diameter(camera.fx)
+    pts = lens_samples(samples) if points is None else np.asarray(points, np.float64)[:samples]
     rgba = depth_w = None
-    for i, (u, v) in enumerate(lens_samples(samples) * radius):
+    for i, (u, v) in enumerate(pts * radius):
         f = render_pinhole(camera.lens_shifted(u, v, lens.focus))
         if rgba is None:
             rgba = np.zeros(f.rgba.shape, np.float64)

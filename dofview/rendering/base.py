@@ -17,10 +17,12 @@ import numpy as np
 from dofview.camera import Camera
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
 from dofview.lens import Lens
-from dofview.rendering.gl import check_size, headless_context, load_shader
+from dofview.rendering.display import DisplayPass
+from dofview.rendering.gl import check_size, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, decode
+from dofview.tonemap.stats import Stats
 
 UPLOAD_CHUNK = 1 << 16  # Gaussians packed and uploaded per step; even, so packed SH halves stay word-aligned
 
@@ -55,6 +57,8 @@ class Renderer(ABC):
     """
 
     name = "base"
+    gpu_sort = False
+    """True when the backend sorts on the GPU inside :meth:`draw` (callers then need no sort thread)."""
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
         self.ctx = ctx or headless_context()
@@ -68,9 +72,7 @@ class Renderer(ABC):
         self.shader_defines = {"SH_DEGREE": scene.sh_degree, "SH_REST": (scene.sh_degree + 1) ** 2 - 1,
                                "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl",
                                "COLOUR_SCALE": repr(self.colour_scale)}
-        self._tonemap = self.ctx.program(
-            vertex_shader=load_shader("fullscreen.vert"), fragment_shader=load_shader("tonemap.frag"))
-        self._tonemap_vao = self.ctx.vertex_array(self._tonemap, [])
+        self._display = DisplayPass(self.ctx)
         self._size: tuple[int, int] | None = None
         self.camera: Camera | None = None
         self.lens: Lens | None = None
@@ -152,29 +154,25 @@ class Renderer(ABC):
         return self.read()
 
     # ---- display ---------------------------------------------------------------------------
-    def tonemap_to(self, target: moderngl.Framebuffer, viewport: tuple[int, int, int, int],
-                   tm: Tonemap, focus_aid: bool = False) -> None:
-        """Run the display pass (Eq. 7) from the last draw into ``target`` at ``viewport``."""
-        p = self._tonemap
-        self.colour_tex.use(0)
-        self.depth_tex.use(1)
-        p["u_colour"].value = 0
-        p["u_depth"].value = 1
-        p["u_encoded"].value = self._encoded
-        p["u_background"].value = tuple(float(c) for c in tm.background)
-        p["u_exposure"].value = float(tm.exposure)
-        p["u_gamma"].value = float(tm.gamma)
-        p["u_focus_aid"].value = focus_aid
-        p["u_aperture"].value = self.lens.aperture if self.lens else 0.0
-        p["u_inv_focus"].value = _float32(self.lens.inv_focus) if self.lens else 0.0
-        target.use()
-        self.ctx.viewport = viewport
-        self._tonemap_vao.render(moderngl.TRIANGLES, vertices=3)
+    def frame_stats(self, operator, domain: tuple[float, float] | None = None) -> Stats:
+        """Scene statistics of the last draw for ``operator``, from GPU histograms (a 32 KB read-back,
+        not the frame); the same numbers as ``tonemap.stats.frame_stats(self.read().rgba, operator)``.
+        ``domain``: the histogram operator's CDF range (log2), default the frame's [lo, hi]."""
+        return self._display.stats(self.colour_tex, self._encoded, operator, domain)
 
-    def display_image(self, tm: Tonemap = Tonemap(), focus_aid: bool = False) -> np.ndarray:
+    def tonemap_to(self, target: moderngl.Framebuffer, viewport: tuple[int, int, int, int],
+                   tm: Tonemap, focus_aid: bool = False, stats: Stats | None = None, same_frame: bool = False) -> None:
+        """Run the display pass (Eq. 7 with ``tm.operator``) from the last draw into ``target`` at
+        ``viewport``. Adaptive operators use ``stats`` (smoothed or pooled), else this frame's;
+        ``same_frame``: nothing was drawn since the last call (the bilateral base layer is kept)."""
+        extra = {"u_focus_aid": focus_aid, "u_aperture": self.lens.aperture if self.lens else 0.0,
+                 "u_inv_focus": _float32(self.lens.inv_focus) if self.lens else 0.0}
+        self._display.run(self.colour_tex, self.depth_tex, self._encoded, target, viewport, tm, stats, extra, same_frame)
+
+    def display_image(self, tm: Tonemap = Tonemap(), focus_aid: bool = False, stats: Stats | None = None) -> np.ndarray:
         """(H, W, 3) uint8: the last draw tonemapped on the GPU, as the viewer shows it."""
         w, h = self._size
-        self.tonemap_to(self.display_fbo, (0, 0, w, h), tm, focus_aid)
+        self.tonemap_to(self.display_fbo, (0, 0, w, h), tm, focus_aid, stats)
         data = np.frombuffer(self.display_fbo.read(components=3), np.uint8).reshape(h, w, 3)
         return data[::-1].copy()
 
@@ -186,8 +184,7 @@ class Renderer(ABC):
         for b in self._buffers.values():
             b.release()
         self._release_backend()
-        for obj in (self._tonemap_vao, self._tonemap):
-            obj.release()
+        self._display.release()
         if self._size is not None:
             for obj in (self.fbo, self.colour_tex, self.depth_tex, self.display_fbo, self._display_rb):
                 obj.release()

@@ -27,6 +27,42 @@ def depth_at(frame: Frame, x: float, y: float, radius: int = 2, min_alpha: float
 
 
 def auto_focus(frame: Frame) -> float | None:
-    """The median depth under the image centre (a window 10% of the smaller side)."""
+    """The median depth under the image centre (a window 10% of the smaller side); where the centre
+    is empty (a gap, a ring-shaped object), that of the covered pixels nearest to it
+    (:func:`nearest_depth`). None only for a frame with nothing in it."""
     h, w = frame.depth.shape
-    return depth_at(frame, w / 2, h / 2, radius=max(1, int(0.05 * min(w, h))))
+    radius = max(1, int(0.05 * min(w, h)))
+    depth = depth_at(frame, w / 2, h / 2, radius=radius)
+    return depth if depth is not None else nearest_depth(frame, w / 2, h / 2, (2 * radius + 1) ** 2)
+
+
+def nearest_depth(frame: Frame, x: float, y: float, count: int) -> float | None:
+    """α-weighted median focus depth of the ``count`` covered pixels nearest to pixel (x, y).
+
+    Covered means α > 0.5, or, in a frame of nothing but haze, α > 0.05; None when no pixel is.
+    """
+    depth = frame.depth if frame.focus_depth is None else frame.focus_depth
+    for min_alpha in (0.5, 0.05):
+        ys, xs = np.nonzero((frame.alpha > min_alpha) & (depth > 0))
+        if xs.size:
+            break
+    else:
+        return None
+    dist2 = (xs + 0.5 - x) ** 2 + (ys + 0.5 - y) ** 2
+    keep = np.argsort(dist2, kind="stable")[:count]
+    d = depth[ys[keep], xs[keep]].astype(np.float64)
+    a = frame.alpha[ys[keep], xs[keep]].astype(np.float64)
+    order = np.argsort(d, kind="stable")
+    cum = np.cumsum(a[order])
+    return float(d[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
+def depth_range(frame: Frame, lo_pct: float = 2.0, hi_pct: float = 98.0) -> tuple[float, float] | None:
+    """(near, far): percentiles of the focus depth over the well-covered pixels (α > 0.5), scene
+    units; None when no pixel is. The viewer scales its focus and aperture sliders by it."""
+    depth = frame.depth if frame.focus_depth is None else frame.focus_depth
+    d = depth[(frame.alpha > 0.5) & (depth > 0)]
+    if d.size == 0:
+        return None
+    near, far = np.percentile(d, [lo_pct, hi_pct])
+    return float(near), float(far)

@@ -13,11 +13,12 @@ import moderngl
 import numpy as np
 
 from dofview.camera import Camera
-from dofview.frame import OPACITY_NORMS, RenderSettings
+from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.rendering.base import Renderer, _float32
+from dofview.rendering.base import Renderer
 from dofview.rendering.gl import load_shader
 from dofview.rendering.sort import front_to_back
+from dofview.rendering.uniforms import set_projection_uniforms
 from dofview.scene import GaussianScene
 
 
@@ -68,21 +69,7 @@ class QuadBackend(Renderer):
             self.sort(camera)
         self.camera, self.lens = camera, lens
         p = self.program
-        for i, name in enumerate(("u_R0", "u_R1", "u_R2")):
-            p[name].value = tuple(float(v) for v in camera.R[i])
-        p["u_T"].value = tuple(float(v) for v in camera.T)
-        if "u_eye" in p:
-            p["u_eye"].value = tuple(float(v) for v in camera.centre)
-        p["u_focal"].value = (camera.fx, camera.fy)
-        p["u_principal"].value = (camera.cx, camera.cy)
-        p["u_viewport"].value = (float(camera.width), float(camera.height))
-        p["u_near"].value = settings.near
-        p["u_tau"].value = settings.tau
-        p["u_aperture"].value = lens.aperture
-        p["u_inv_focus"].value = _float32(lens.inv_focus)
-        p["u_k"].value = settings.k
-        p["u_opacity_norm"].value = OPACITY_NORMS.index(settings.opacity_norm)
-        p["u_blend_linear"].value = settings.blend_linear
+        set_projection_uniforms(p, camera, lens, settings)
         p["u_count"].value = count
         for binding, buf in self._buffers.items():
             buf.bind_to_storage_buffer(binding)

@@ -12,7 +12,7 @@ import numpy as np
 
 from dofview.camera import Camera
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
-from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
+from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, cut_splat, normalise_opacity
 from dofview.scene import SH_C0, GaussianScene
 from dofview.tonemap import decode
 
@@ -74,10 +74,9 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
     o = normalise_opacity(scene.opacities[idx].astype(np.float64), beta, settings.opacity_norm)
-    tau = settings.tau
-    ok = np.isfinite(det) & (det > 0) & (o > 0) & (np.minimum(o, ALPHA_MAX) >= tau)
     with np.errstate(divide="ignore", invalid="ignore"):
-        r2 = np.minimum(2.0 * np.log(o / tau), 9.0) if tau > 0 else np.full_like(o, 9.0)  # ≤ 3σ, as quads.vert
+        kept, o, r2 = cut_splat(o, settings.tau, settings.cut)
+    ok = np.isfinite(det) & (det > 0) & kept
     mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)
     sel = np.nonzero(ok)[0]
     return {

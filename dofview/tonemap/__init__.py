@@ -1,82 +1,48 @@
-"""From blended values to linear light and to display (Eq. 7): C̄ = min(exposure·C, 1)^(1/γ).
+"""Tone mapping: display settings (:class:`Tonemap`: exposure, gamma, background, operator), the
+colour transfers, and the operators by name in :data:`OPERATORS`.
 
-Colour space matters. A standard 3DGS scene was fit to sRGB photos, so its blended values are
-display-encoded: they are decoded (with the scene's encoding gamma) before exposure is applied and
-encoded again after, so that 0 EV with γ = 2.2 reproduces the trained image and gamma is never
-applied twice. An HDR scene blends linear radiance and only gets the display gamma.
-
-The linear image of an encoded scene is decode(C) of the blend C over black; its alpha is the
-coverage. So tonemapping the EXR reproduces the PNG exactly (black background).
-The GPU pass in ``rendering/glsl/tonemap.frag`` computes the same as :func:`display`; tests hold them equal.
+Each operator is one module: a frozen dataclass whose numpy ``apply`` is the twin of its GLSL pass
+``rendering/glsl/tonemap_<name>.glsl`` (see :mod:`dofview.tonemap.operator`). ``clip`` is Eq. 7
+and the default; ``reinhard05``, ``histogram`` and ``bilateral`` adapt to scene statistics
+(:mod:`dofview.tonemap.stats`); ``aces`` (OpenColorIO), ``aces-fit``, ``pbr-neutral`` and ``filmic``
+are fixed display curves.
+To add one: a module here, its .glsl, and one line in OPERATORS (the CLI's --tonemap choices, the
+viewer's combo box and the GPU-vs-numpy tests follow).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dofview.tonemap.aces import Aces
+from dofview.tonemap.aces_fit import AcesFit
+from dofview.tonemap.base import (
+    SCENE_ENCODING_GAMMA,
+    Tonemap,
+    decode,
+    display,
+    encode,
+    linear_from_blended,
+    to_uint8,
+)
+from dofview.tonemap.bilateral import Bilateral
+from dofview.tonemap.clip import Clip
+from dofview.tonemap.filmic import Filmic
+from dofview.tonemap.histogram import Histogram
+from dofview.tonemap.operator import Operator
+from dofview.tonemap.pbr_neutral import PbrNeutral
+from dofview.tonemap.reinhard05 import Reinhard05
+from dofview.tonemap.stats import Stats, StatsSmoother, frame_stats, pooled_stats
 
-import numpy as np
+OPERATORS: dict[str, type[Operator]] = {
+    "clip": Clip,
+    "reinhard05": Reinhard05,
+    "histogram": Histogram,
+    "bilateral": Bilateral,
+    "aces": Aces,
+    "aces-fit": AcesFit,
+    "pbr-neutral": PbrNeutral,
+    "filmic": Filmic,
+}
 
-from dofview.errors import DofviewError
-
-SCENE_ENCODING_GAMMA = 2.2  # the transfer of the photos a standard 3DGS scene was fit to
-
-
-@dataclass(frozen=True)
-class Tonemap:
-    """Display settings.
-
-    Attributes:
-        exposure: linear multiplier (2^EV or t/N²), > 0.
-        gamma: display gamma γ, > 0.
-        background: display-encoded background colour, each in [0, 1].
-    """
-
-    exposure: float = 1.0
-    gamma: float = 2.2
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        if not (np.isfinite(self.exposure) and self.exposure > 0):
-            raise DofviewError(f"exposure multiplier must be finite and > 0, got {self.exposure}")
-        if not (np.isfinite(self.gamma) and self.gamma > 0):
-            raise DofviewError(f"gamma must be finite and > 0, got {self.gamma}")
-
-
-def decode(c: np.ndarray) -> np.ndarray:
-    """Display-encoded → linear: max(C, 0)^2.2."""
-    return np.power(np.maximum(c, 0.0), SCENE_ENCODING_GAMMA)
-
-
-def encode(c: np.ndarray) -> np.ndarray:
-    """Linear → display-encoded: max(C, 0)^(1/2.2), the inverse of :func:`decode`."""
-    return np.power(np.maximum(c, 0.0), 1.0 / SCENE_ENCODING_GAMMA)
-
-
-def linear_from_blended(blended: np.ndarray, encoded: bool) -> np.ndarray:
-    """(H, W, 4) blended RGBA (colour premultiplied) → (H, W, 4) float32 linear RGBA."""
-    out = np.array(blended, dtype=np.float32, copy=True)
-    if encoded:
-        out[..., :3] = decode(out[..., :3])
-    return out
-
-
-def display(linear: np.ndarray, encoded: bool, tm: Tonemap) -> np.ndarray:
-    """(H, W, 4) linear RGBA → (H, W, 3) float64 display values in [0, 1] (before 8-bit rounding).
-
-    The background is composited in the blend's own space, as the scene was trained, then the
-    result is exposed in linear light, clipped and gamma-encoded.
-    """
-    linear = np.asarray(linear, dtype=np.float64)
-    bg = np.asarray(tm.background, dtype=np.float64)
-    t = 1.0 - linear[..., 3:4]
-    if encoded:
-        lin = decode(encode(linear[..., :3]) + t * bg)
-    else:
-        lin = linear[..., :3] + t * decode(bg)
-    lin = np.nan_to_num(lin * tm.exposure, nan=0.0, posinf=1.0)
-    return np.power(np.clip(lin, 0.0, 1.0), 1.0 / tm.gamma)
-
-
-def to_uint8(img: np.ndarray) -> np.ndarray:
-    """[0, 1] floats → uint8, rounded to nearest."""
-    return (np.clip(img, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+__all__ = ["OPERATORS", "SCENE_ENCODING_GAMMA", "Aces", "AcesFit", "Bilateral", "Clip", "Filmic", "Histogram", "Operator",
+           "PbrNeutral", "Reinhard05", "Stats", "StatsSmoother", "Tonemap", "decode", "display", "encode",
+           "frame_stats", "linear_from_blended", "pooled_stats", "to_uint8"]

@@ -6,7 +6,6 @@ import argparse
 from pathlib import Path
 
 DEFAULT_WINDOW = (1280, 800)
-DEFAULT_BLUR_AT_INFINITY_PX = 6.0  # without --aperture the viewer starts with visible depth of field
 
 
 def add_parser(subparsers) -> None:
@@ -32,7 +31,8 @@ def _initial_settings(args: argparse.Namespace, scene_colour_space: str):
     tm = tonemap_from_args(args)  # also refuses --shutter without --fnumber
     s = ViewerSettings(colour_space=scene_colour_space, render=settings_from_args(args), gamma=tm.gamma,
                        ev=args.exposure, background=tm.background, sensor_mm=args.sensor_mm,
-                       units_per_metre=args.units_per_metre)
+                       units_per_metre=args.units_per_metre, tonemap_operator=tm.operator.name,
+                       tonemap_params=tm.operator.params())
     s.physical = args.fnumber is not None or args.focal_mm is not None
     s.fnumber = args.fnumber or s.fnumber
     s.focal_mm = args.focal_mm or s.focal_mm
@@ -43,8 +43,15 @@ def _initial_settings(args: argparse.Namespace, scene_colour_space: str):
 
 def run_view(args: argparse.Namespace) -> int:
     from dofview.io.cameras import load_cameras_json
-    from dofview.options import camera_from_args, lens_from_args, load_scene_arg
+    from dofview.options import (
+        camera_from_args,
+        lens_from_args,
+        load_scene_arg,
+        say_notes,
+        up_from_args,
+    )
     from dofview.viewer.script import ScriptRunner, load_script
+    from dofview.viewer.settings import START_COC_PX
     from dofview.viewer.window import check_display
 
     check_display()
@@ -52,6 +59,10 @@ def run_view(args: argparse.Namespace) -> int:
     scene = load_scene_arg(args)
     cameras = load_cameras_json(args.cameras) if args.cameras else []
     settings = _initial_settings(args, scene.colour_space)
+    if args.stats == "joint" and not cameras:
+        from dofview.errors import DofviewError
+
+        raise DofviewError("--stats joint pools the views of --cameras: give --cameras")
     start = camera_from_args(args, scene, DEFAULT_WINDOW)
 
     from dofview.viewer.viewer import Viewer
@@ -59,7 +70,9 @@ def run_view(args: argparse.Namespace) -> int:
 
     window = Window("dofview", args.width or DEFAULT_WINDOW[0], args.height or DEFAULT_WINDOW[1],
                     on_drop=lambda paths: viewer.open_file(paths[0]))
-    viewer = Viewer(window, scene, args.scene, settings, start, cameras)
+    viewer = Viewer(window, scene, args.scene, settings, start, cameras, None if cameras else up_from_args(args, scene),
+                    raster=args.raster)
+    say_notes(args)
     names = [c.name for c in cameras]
     if args.cameras and start.name in names:
         viewer.view_index = names.index(start.name)
@@ -67,10 +80,13 @@ def run_view(args: argparse.Namespace) -> int:
         if args.focus == "auto":
             viewer.auto_focus()
         else:
+            viewer.pinhole_pass(sort=True)  # the depths in view scale the sliders and the first aperture
             settings.focus = float(args.focus)
         lens = lens_from_args(args, viewer.camera(), settings.focus)  # refuses conflicting lens options
         settings.aperture = lens.aperture if args.aperture is not None or settings.physical \
-            else 2.0 * DEFAULT_BLUR_AT_INFINITY_PX * settings.focus
+            else viewer.aperture_for_blur(START_COC_PX)
+        if args.stats == "joint" and settings.operator().adaptive:
+            viewer.lock_joint_stats()
         runner = ScriptRunner(actions, str(args.script)) if actions is not None else None
         while not window.should_close:
             window.poll(None if runner or viewer.busy or viewer.fly_mode else 1 / 30)

@@ -28,11 +28,12 @@ HELP: tuple[tuple[str, str], ...] = (
     ("F", "focus on what is under the cursor"),
     ("G", "focus aid: tint the sharp band"),
     ("R", "reset to the camera that frames the scene"),
+    ("U", "next world up (-y, +z, +y, -z, +x, -x) and frame the scene from it"),
     ("N / P, Page Down / Page Up", "next / previous view of cameras.json"),
     ("Ctrl+S", "save the view (EXR + PNG)"),
     ("Ctrl+C", "copy the equivalent dofview render command"),
     ("F1 or H", "this help"),
-    ("Drop a file", ".ply/.splat: open the scene; .json: use its cameras"),
+    ("Drop a file or folder", "scene or run folder: open it; .json: use its cameras"),
 )
 
 
@@ -56,6 +57,7 @@ class ViewerActions(Protocol):
     def camera(self) -> Camera: ...
     def focus_at(self, x: float, y: float) -> None: ...
     def reset_view(self) -> None: ...
+    def cycle_up(self) -> None: ...
     def step_view(self, step: int) -> None: ...
     def save(self) -> None: ...
     def copy_command(self) -> None: ...
@@ -137,6 +139,8 @@ def _keys(viewer: ViewerActions, io, x: float, y: float) -> None:
         viewer.settings.focus_aid = not viewer.settings.focus_aid
     if pressed(imgui.Key.r, False):
         viewer.reset_view()
+    if pressed(imgui.Key.u, False):
+        viewer.cycle_up()
     if pressed(imgui.Key.n, False) or pressed(imgui.Key.page_down, False):
         viewer.step_view(1)
     if pressed(imgui.Key.p, False) or pressed(imgui.Key.page_up, False):

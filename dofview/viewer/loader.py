@@ -8,16 +8,21 @@ import time
 import traceback
 from pathlib import Path
 
+from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.io import load_scene
+from dofview.io.cameras import load_cameras_json
+from dofview.io.runfolder import find_run
 from dofview.scene import GaussianScene
 
 
 class SceneLoad:
-    """One scene file being read on a worker thread.
+    """One scene file (or run folder) being read on a worker thread.
 
     Poll :attr:`done`; then either :attr:`scene` is set, or :attr:`error` holds a one-line message.
-    :attr:`fraction` (0…1) and :attr:`elapsed` (s) drive the progress bar meanwhile.
+    :attr:`fraction` (0…1) and :attr:`elapsed` (s) drive the progress bar meanwhile. A run folder,
+    or a file with a ``cameras.json`` near it (dofview.io.runfolder), also fills :attr:`cameras`,
+    and :attr:`found` says what was found.
     """
 
     def __init__(self, path: str | Path, colour_space: str | None = None) -> None:
@@ -25,6 +30,8 @@ class SceneLoad:
         self.colour_space = colour_space
         self.fraction = 0.0
         self.scene: GaussianScene | None = None
+        self.cameras: list[Camera] = []
+        self.found = ""
         self.error: str | None = None
         self._t0 = time.perf_counter()
         self._finished = threading.Event()
@@ -46,6 +53,12 @@ class SceneLoad:
 
     def _run(self) -> None:
         try:
+            run = find_run(self.path)
+            if run.cameras is not None:
+                self.cameras = load_cameras_json(run.cameras)
+            if run.cameras is not None or run.root is not None:
+                self.found = run.describe(len(self.cameras) if self.cameras else None)
+            self.path = run.scene
             scene = load_scene(self.path, progress=self._progress)
             if self.colour_space:
                 scene.colour_space = self.colour_space

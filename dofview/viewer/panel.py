@@ -12,8 +12,11 @@ import numpy as np
 from imgui_bundle import imgui
 
 from dofview.frame import OPACITY_NORMS
+from dofview.io import READERS
+from dofview.rendering.progressive import SHOW_AFTER
 from dofview.scene import COLOUR_SPACES
 from dofview.viewer.input import HELP
+from dofview.viewer.settings import MAX_COC_PX
 
 if TYPE_CHECKING:
     from dofview.viewer.viewer import Viewer
@@ -49,7 +52,7 @@ def _note(text: str, colour: imgui.ImVec4 | None = None) -> None:
 
 def _lens(v: "Viewer") -> None:
     s = v.settings
-    lo, hi = 1e-3 * v.radius, 100.0 * v.radius
+    lo, hi = v.focus_range  # from the depths in view
     changed, focus = _log_slider("focus", s.focus, lo, hi)
     entered, typed = imgui.input_float("focus (type)", s.focus, 0.0, 0.0, "%.5g", imgui.InputTextFlags_.enter_returns_true)
     if changed or (entered and math.isfinite(typed) and typed > 0):
@@ -64,7 +67,8 @@ def _lens(v: "Viewer") -> None:
         _, s.units_per_metre = _log_slider("units per metre", s.units_per_metre, 1e-3, 1e3)
         imgui.text_disabled(f"aperture strength A = {v.lens().aperture:.4g}")
     else:
-        _, s.aperture = _log_slider("aperture A", s.aperture, 0.0, 200.0 * max(v.radius, 1.0))
+        top = max(v.aperture_for_blur(MAX_COC_PX), s.aperture)  # the largest blur in view reaches 30 px
+        _, s.aperture = _log_slider("aperture A", s.aperture, 0.0, top)
     imgui.text_disabled("blur radius R = A/2 * |1/z - 1/focus| px")
     _, s.smooth_focus = imgui.checkbox("smooth focus pull", s.smooth_focus)
     imgui.same_line()
@@ -96,6 +100,35 @@ def _image(v: "Viewer") -> None:
     changed, bg = imgui.color_edit3("background", list(s.background))
     if changed:
         s.background = tuple(float(c) for c in bg)
+    _tonemap(v)
+
+
+def _tonemap(v: "Viewer") -> None:
+    """Operator combo box, its parameters as sliders, and the statistics lock."""
+    from dataclasses import fields
+
+    from dofview.tonemap import OPERATORS
+
+    s = v.settings
+    names = list(OPERATORS)
+    changed, i = imgui.combo("tone mapping", names.index(s.tonemap_operator), names)
+    if changed:
+        s.tonemap_operator, s.tonemap_params = names[i], {}
+    op = s.operator()
+    for f in fields(op):
+        lo, hi = op.ranges[f.name]
+        value = getattr(op, f.name)
+        if f.type == "int":
+            moved, new = imgui.slider_int(f.name, int(value), int(lo), int(hi))
+        else:
+            moved, new = _slider(f.name, float(value), lo, hi, "%.3g")
+        if moved:
+            s.tonemap_params = {**s.tonemap_params, f.name: new}
+    if op.adaptive:
+        _, s.stats_lock = imgui.checkbox("lock adaptation", s.stats_lock)
+        st = v.smoother.state
+        if st is not None:
+            imgui.text_disabled(f"key 2^{st.key:+.2f}, 1-99%: 2^{st.lo:+.2f}..2^{st.hi:+.2f}")
 
 
 def _camera(v: "Viewer") -> None:
@@ -128,6 +161,8 @@ def _status(v: "Viewer") -> None:
         imgui.plot_lines("##frametimes", ft, overlay_text=f"max {ft.max():.0f} ms", scale_min=0.0,
                          graph_size=imgui.ImVec2(-1, 40))
     imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")
+    if v.progressive.samples:
+        imgui.text(f"thin lens: {v.progressive.samples} samples" + ("" if v.progressive.samples >= SHOW_AFTER else " (single pass shown)"))
     cam = v.camera()
     imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.scene_path.name}")
 
@@ -152,7 +187,7 @@ def _files(v: "Viewer") -> None:
             from imgui_bundle import portable_file_dialogs as pfd
 
             v.dialog = pfd.open_file("Open a scene", str(v.scene_path.parent),
-                                     ["Scenes", "*.ply *.splat", "Cameras", "*.json"])
+                                     ["Scenes", " ".join("*" + e for e in READERS), "Cameras", "*.json"])
     else:
         _note("(no dialog program: type a path or drop a file)")
     if v.dialog is not None and v.dialog.ready(0):

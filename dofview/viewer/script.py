@@ -18,6 +18,8 @@ origin, framebuffer units; paths are relative to the working directory):
     {"do": "frames", "n": 5}                    run n frames
     {"do": "wait", "seconds": 0.3}              run frames for that long
     {"do": "settle"}                            run frames until no load, sort or focus pull is pending
+    {"do": "still", "samples": 16}              run frames until the thin lens has that many samples
+                                                (set "lens_samples_max" to the same to stop there)
     {"do": "capture", "path": "image.png"}      the image area as shown, before the panel is drawn
     {"do": "screenshot", "path": "window.png"}  the whole window, panel included
     {"do": "report", "path": "state.json"}      the viewer's state (camera, lens, tonemap, error…)
@@ -54,7 +56,7 @@ SETTLE_TIMEOUT_S = 120.0
 _SETTINGS = {f.name for f in fields(ViewerSettings)} - {"render"}
 _RENDER = {f.name for f in fields(RenderSettings)}
 _ACTIONS = {"set", "click", "orbit", "pan", "look", "zoom", "view", "next", "reset", "open", "save",
-            "copy_command", "help", "frames", "wait", "settle", "capture", "screenshot", "report", "quit",
+            "copy_command", "help", "frames", "wait", "settle", "still", "capture", "screenshot", "report", "quit",
             "mouse_move", "mouse_button", "scroll", "key"}
 
 
@@ -169,6 +171,16 @@ class ScriptRunner:
             self._until = None
         elif do == "settle":
             return self._settled(v)
+        elif do == "still":
+            if v.progressive.samples >= int(a["samples"]):
+                self._settle_since = None
+                return True
+            now = time.perf_counter()
+            self._settle_since = self._settle_since or now
+            if now - self._settle_since > SETTLE_TIMEOUT_S:
+                raise DofviewError(f"{self.source}: action {self.index}: the thin lens did not reach "
+                                   f"{a['samples']} samples in {SETTLE_TIMEOUT_S:g} s (aperture 0, or lens_samples_max lower?)")
+            return False
         elif do in ("capture", "screenshot", "report"):
             if a.get("settle", True) and not self._settled(v):
                 return False

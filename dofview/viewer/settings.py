@@ -15,6 +15,8 @@ from dofview.lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shu
 from dofview.tonemap import Tonemap
 
 FOCUS_PULL_S = 0.15  # duration of a smooth focus pull
+START_COC_PX = 0.5  # without --aperture the first frame blurs nothing by a pixel: sharp, yet the slider is live
+MAX_COC_PX = 30.0  # the aperture slider ends where the largest blur in view reaches this radius
 
 
 @dataclass
@@ -39,9 +41,13 @@ class ViewerSettings:
     exposure_follows_aperture: bool = False
     shutter_s: float = 1.0 / 8.0
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tonemap_operator: str = "clip"  # a key of dofview.tonemap.OPERATORS
+    tonemap_params: dict[str, float] = field(default_factory=dict)  # its parameters (missing: defaults)
+    stats_lock: bool = False  # freeze the adaptive operators' smoothed statistics
     colour_space: str = "srgb"
     focus_aid: bool = False
     smooth_focus: bool = True
+    lens_samples_max: int = 256  # pinhole passes the thin lens is refined with while still (0: off)
     render: RenderSettings = field(default_factory=RenderSettings)
 
     def physical_lens(self) -> PhysicalLens:
@@ -61,7 +67,17 @@ class ViewerSettings:
         exposure = exposure_from_ev(self.ev)
         if self.exposure_follows_aperture and self.physical:
             exposure *= exposure_from_shutter(self.shutter_s, self.fnumber)
-        return Tonemap(exposure=exposure, gamma=self.gamma, background=self.background)
+        return Tonemap(exposure=exposure, gamma=self.gamma, background=self.background, operator=self.operator())
+
+    def operator(self):
+        """The tone-mapping operator with the panel's parameters (those it does not have are dropped)."""
+        from dataclasses import fields
+
+        from dofview.tonemap import OPERATORS
+
+        cls = OPERATORS[self.tonemap_operator]
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in self.tonemap_params.items() if k in names})
 
     def lens_info(self) -> dict[str, float | None]:
         """The physical-lens values written into a saved EXR's header (None when A is given directly)."""

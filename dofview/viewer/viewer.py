@@ -8,6 +8,7 @@ panel over the right. Exposure, gamma, background and the focus aid only re-run 
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections import deque
@@ -18,15 +19,29 @@ import moderngl
 import numpy as np
 
 from dofview.api import save_render
-from dofview.camera import Camera, framing_camera
+from dofview.camera import Camera
 from dofview.errors import DofviewError
+from dofview.frame import Frame
+from dofview.framing import (
+    UP_AXES,
+    UpGuess,
+    axis_vector,
+    extent,
+    guess_up,
+    nearest_axis,
+    overview_camera,
+    rig_centre,
+    rig_up,
+)
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens
 from dofview.options import render_command_line
-from dofview.rendering.focus import auto_focus, depth_at
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.focus import auto_focus, depth_at, depth_range
+from dofview.rendering.progressive import ProgressiveLens
+from dofview.rendering import Renderer, get_backend
 from dofview.rendering.sorter import SortThread
 from dofview.scene import GaussianScene
+from dofview.tonemap.stats import Stats, StatsSmoother, cdf_domain
 from dofview.viewer.controls import ViewControls
 from dofview.viewer.input import InputHandler
 from dofview.viewer.loader import SceneLoad
@@ -38,25 +53,23 @@ COUNT_EVERY_S = 0.5  # how often the drawn-Gaussian counter is read back (it cos
 FRAME_HISTORY = 120
 
 
-def scene_extent(scene: GaussianScene) -> tuple[np.ndarray, float]:
-    """(centre (3,), radius) of the scene's robust bounds, scene units."""
-    lo, hi = scene.robust_bounds()
-    return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-6)
-
-
 class Viewer:
     """Everything the window shows. The panel (panel.py) and the script (script.py) drive it
     through its attributes and methods, the same ones mouse and keys use."""
 
     def __init__(self, window: Window, scene: GaussianScene, scene_path: Path, settings: ViewerSettings,
-                 camera: Camera, cameras: list[Camera]) -> None:
+                 camera: Camera, cameras: list[Camera], up: UpGuess | None = None, raster: str = "auto") -> None:
         self.window = window
         self.ctx = window.ctx
         self.settings = settings
         self.cameras = cameras
+        self.raster = raster  # renderer backend name (dofview.rendering.BACKENDS, or "auto")
         self.view_index: int | None = None
         self.sorter = SortThread()
         self.pull = FocusPull()
+        self.smoother = StatsSmoother()  # adaptive tone mapping: statistics smoothed in time
+        self._frame_stats: Stats | None = None
+        self._stats_time: float | None = None
         self.loading: SceneLoad | None = None
         self.message = ""  # last status line (saved file, copied command)
         self.error = ""  # last error (failed load or save), shown in red until the next action
@@ -81,39 +94,68 @@ class Viewer:
         self._sort_key: bytes | None = None  # the view the newest sort was asked for
         self._order_key: bytes | None = None  # the view the uploaded order belongs to
         self.generation = 0
-        self.renderer: QuadBackend | None = None
-        self.set_scene(scene, scene_path, camera)
+        self.depth_span = (1.0, 1.0)  # near and far depth in view (2nd/98th percentile), scene units
+        self.renderer: Renderer | None = None
+        self.set_scene(scene, scene_path, camera, up)
 
     # ---- scene and views -------------------------------------------------------------------
-    def set_scene(self, scene: GaussianScene, path: Path, camera: Camera | None = None) -> None:
-        """Show ``scene``: upload it, frame it (or start at ``camera``) and sort once up front.
+    def set_scene(self, scene: GaussianScene, path: Path, camera: Camera | None = None, up: UpGuess | None = None) -> None:
+        """Show ``scene``: upload it, start at ``camera`` (default: view 0 of :attr:`cameras`, else a
+        camera framing the scene from the ``up`` given or guessed) and sort once up front.
 
         The new scene is uploaded before the old one is released, so a failed upload keeps it.
         """
-        renderer = QuadBackend(scene, ctx=self.ctx)
+        renderer = get_backend(self.raster, scene, ctx=self.ctx)
         if self.renderer is not None:
+            self.progressive.release()
             self.renderer.release()
         self.renderer = renderer
+        self.progressive = ProgressiveLens(renderer)  # the thin lens refined while still
         self.scene, self.scene_path = scene, Path(path)
         self.generation += 1
+        self.smoother.reset()
         self.settings.colour_space = scene.colour_space
-        self.centre, self.radius = scene_extent(scene)
+        self.centre, self.radius = extent(scene)
         self.fly_speed = 0.5 * self.radius
         self.view_index = None
-        self._set_controls(camera or framing_camera(scene, 800, 600))
+        if self.cameras:
+            self._use_rig()
+        else:
+            guess = up or guess_up(scene)
+            self.up_label, self.up = guess.nearest_axis, guess.vector
+            self.message = f"up {guess.label} ({guess.reason}); U cycles"
+        if camera is None and self.cameras:
+            camera, self.view_index = self.cameras[0], 0
+        self._set_controls(camera or overview_camera(scene, 800, 600, up=self.up))
         self._drawn_key = self._sort_key = None
         self._last_count = -math.inf  # count the new scene's first frame
         self.window.set_title(f"dofview — {self.scene_path.name}")
+
+    def _use_rig(self) -> None:
+        """Orbit around the point nearest to all training views' axes, with their mean up."""
+        self.up = rig_up(self.cameras)
+        self.up_label = nearest_axis(self.up)
+        centre = rig_centre(self.cameras)
+        if centre is not None:
+            self.centre = centre
 
     def _set_controls(self, camera: Camera) -> None:
         fwd = camera.forward
         pivot = float(np.dot(self.centre - camera.centre, fwd))
         self.controls = ViewControls.from_camera(camera, pivot if pivot > 0.05 * self.radius else self.radius)
+        self.controls.up = self.up.copy()
 
     def reset_view(self) -> None:
         """Back to the camera that frames the whole scene."""
         self.view_index = None
-        self._set_controls(framing_camera(self.scene, 800, 600))
+        self._set_controls(overview_camera(self.scene, 800, 600, up=self.up))
+
+    def cycle_up(self) -> None:
+        """Take the next world up of :data:`UP_AXES` and frame the scene from it (the U key)."""
+        self.up_label = UP_AXES[(UP_AXES.index(self.up_label) + 1) % len(UP_AXES)]
+        self.up = axis_vector(self.up_label)
+        self.reset_view()
+        self.message = f"up {self.up_label} (U cycles)"
 
     def set_view(self, index: int) -> None:
         """Jump to camera ``index`` of cameras.json (wrapping around)."""
@@ -133,13 +175,14 @@ class Viewer:
         """Start loading a scene (in the background) or, for a .json file, a set of cameras."""
         path = Path(path).expanduser()
         self.error = ""
-        if path.suffix.lower() == ".json":
+        if path.suffix.lower() == ".json" and path.name.lower() != "meta.json":  # meta.json: a SOG scene
             try:
                 self.cameras = load_cameras_json(path)
             except DofviewError as e:
                 self.error = str(e)
                 return
             self.message = f"{len(self.cameras)} cameras from {path.name}"
+            self._use_rig()
             self.set_view(0)
             return
         self.loading = SceneLoad(path)
@@ -149,13 +192,15 @@ class Viewer:
         if load.error:
             self.error = load.error  # the current scene stays
             return
+        previous, self.cameras = self.cameras, load.cameras  # the old ones belonged to the previous scene
         try:
             self.set_scene(load.scene, load.path)
         except (DofviewError, moderngl.Error) as e:  # e.g. too large for this GPU's memory
+            self.cameras = previous
             self.error = f"{load.path}: cannot show this scene ({e})"
             return
-        self.cameras = []  # those belonged to the previous scene
-        self.message = f"loaded {load.path.name}: {load.scene.count:,} Gaussians in {load.elapsed:.1f} s"
+        self.message = (f"loaded {load.path.name}: {load.scene.count:,} Gaussians in {load.elapsed:.1f} s; "
+                        + (load.found or self.message))
         self.auto_focus()
 
     # ---- the current image -----------------------------------------------------------------
@@ -191,11 +236,7 @@ class Viewer:
     def depth_under(self, x: float, y: float) -> float | None:
         """Depth (scene units) under image pixel (x, y) (framebuffer pixels, top-left origin), from
         the renderer's α-weighted inverse depth of a pinhole pass (a blurred pass would mix objects)."""
-        camera = self.camera()
-        self.renderer.draw(camera, Lens(self.settings.focus, 0.0), self.settings.render, sort=False)
-        depth = depth_at(self.renderer.read(), x, y)
-        self._drawn_key = None  # the targets now hold the pinhole pass
-        return depth
+        return depth_at(self.pinhole_pass(sort=False), x, y)
 
     def focus_at(self, x: float, y: float) -> float | None:
         """Click-to-focus at image pixel (x, y); returns the depth, or None over empty space."""
@@ -209,12 +250,34 @@ class Viewer:
 
     def auto_focus(self) -> None:
         """Focus at the median depth under the image centre (as ``dofview render --focus auto``)."""
-        camera = self.camera()
-        self.renderer.draw(camera, Lens(1.0, 0.0), self.settings.render, sort=True)
-        depth = auto_focus(self.renderer.read())
-        self._drawn_key = None
+        depth = auto_focus(self.pinhole_pass(sort=True))
         self.settings.focus = depth if depth is not None else self.controls.pivot_distance
         self.pull.target = None
+
+    def pinhole_pass(self, sort: bool) -> Frame:
+        """Draw and read back a pinhole pass of the current view (sorted first if ``sort``), and
+        take the depth range in view from it (:attr:`depth_span`, which scales the sliders)."""
+        self.renderer.draw(self.camera(), Lens(1.0, 0.0), self.settings.render, sort=sort)
+        frame = self.renderer.read()
+        self._drawn_key = None  # the targets now hold the pinhole pass
+        span = depth_range(frame)
+        if span is not None:
+            self.depth_span = span
+        return frame
+
+    @property
+    def focus_range(self) -> tuple[float, float]:
+        """The focus slider's ends: half the nearest to twice the farthest depth in view (last measured)."""
+        near, far = self.depth_span
+        return min(0.5 * near, self.settings.focus), max(2.0 * far, self.settings.focus)
+
+    def aperture_for_blur(self, radius_px: float) -> float:
+        """Aperture A at which the largest blur in view (nearest or farthest depth, at the current
+        focus) has a radius of ``radius_px`` pixels: R = A/2·|1/z − 1/focus|."""
+        near, far = self.depth_span
+        inv_f = 1.0 / self.settings.focus
+        worst = max(abs(1.0 / near - inv_f), abs(1.0 / far - inv_f), 0.1 * inv_f)  # a flat view: 10 % of 1/focus
+        return 2.0 * radius_px / worst
 
     def save(self, path: str | Path | None = None, png: bool | None = None) -> None:
         """Write the current view as EXR (and PNG beside it), exactly as ``dofview render`` would."""
@@ -227,7 +290,8 @@ class Viewer:
             camera = self.camera()
             save_render(self.renderer, camera, self.lens(camera), self.settings.tonemap(), self.settings.render,
                         str(self.scene_path), out, out.with_suffix(".png") if png else None,
-                        lens_info=self.settings.lens_info())
+                        lens_info=self.settings.lens_info(),
+                        stats=self.smoother.state if self.settings.tonemap().operator.adaptive else None)
         except DofviewError as e:
             self.error = str(e)
             return
@@ -264,15 +328,18 @@ class Viewer:
         camera = self.camera()
         lens = self.lens(camera)
         key = camera.view_key()
-        if self._sort_key is None:  # a new scene: sort once here so the first frame is right
-            self.renderer.sort(camera)
+        if self._sort_key is None or self.renderer.gpu_sort:  # a new scene, or a backend that sorts on the GPU
+            self.renderer.sort(camera)  # (a no-op when the view did not move)
             self._sort_key = self._order_key = key
         elif key != self._sort_key:
             self.sorter.request(self.scene.means, camera, self.generation)
             self.sort_requests += 1
             self._sort_key = key
         state = self._state_key(camera, lens)
-        if state != self._drawn_key:
+        drawn = state == self._drawn_key  # the targets already hold this frame
+        if not drawn:
+            if self.progressive.samples:  # its passes left the order of a lens-shifted camera
+                self.renderer.sort(camera)
             self.renderer.encoded_scene = self.settings.colour_space == "srgb"
             self.scene.colour_space = self.settings.colour_space
             count = now - self._last_count >= COUNT_EVERY_S
@@ -284,12 +351,20 @@ class Viewer:
             if count:
                 self._last_count = now
             self._drawn_key = state
+            self.progressive.restart(keep_single=True)
+        elif (lens.aperture > 0 and self.progressive.samples < self.settings.lens_samples_max and not self.busy
+              and self._order_key == self._sort_key):
+            self.progressive.add(camera, lens, self.settings.render)  # still: one more pinhole pass
+            self.progressive.show()
+            drawn = False  # the targets now hold the refined image
         self.ctx.screen.use()
         self.ctx.viewport = (0, 0, *self.window.framebuffer_size)
         self.ctx.clear(0.08, 0.08, 0.09)
         w, h = camera.width, camera.height
         fh = self.window.framebuffer_size[1]
-        self.renderer.tonemap_to(self.ctx.screen, (0, fh - h, w, h), self.settings.tonemap(), self.settings.focus_aid)
+        tm = self.settings.tonemap()
+        self.renderer.tonemap_to(self.ctx.screen, (0, fh - h, w, h), tm, self.settings.focus_aid, self._adapt(tm, now),
+                                 same_frame=drawn)
         for path in self.capture_requests:
             self._write_screen(path, (0, fh - h, w, h))
         self.capture_requests.clear()
@@ -301,10 +376,42 @@ class Viewer:
         data = np.frombuffer(self.ctx.screen.read(viewport=viewport, components=3), np.uint8).reshape(h, w, 3)
         write_png(path, data[::-1])
 
+    def _adapt(self, tm, now: float) -> Stats | None:
+        """This frame's statistics from the GPU (histograms only are read back), smoothed with the
+        measured frame interval; None for the fixed operators."""
+        op = tm.operator
+        if not op.adaptive:
+            self._frame_stats = self._stats_time = None
+            return None
+        state = self.smoother.state
+        domain = cdf_domain(state) if op.needs_cdf and state is not None and state.cdf is not None else None
+        self._frame_stats = self.renderer.frame_stats(op, domain)
+        if op.needs_cdf != (state is not None and state.cdf is not None):
+            self.smoother.reset()  # another operator's statistics: start from this frame
+        dt = now - self._stats_time if self._stats_time is not None else 0.0
+        self._stats_time = now
+        self.smoother.locked = self.settings.stats_lock
+        return self.smoother.update(self._frame_stats, dt)
+
+    def lock_joint_stats(self) -> None:
+        """``--stats joint``: statistics pooled over every view of cameras.json, locked (no adaptation)."""
+        from dofview.api import joint_stats
+
+        self.smoother.state = joint_stats(self.renderer, self.cameras, self.settings.operator(), self.settings.render)
+        self.settings.stats_lock = True
+        self._drawn_key = None  # the pooled renders replaced the targets
+
+    @property
+    def adapting(self) -> bool:
+        """The smoothed statistics are still moving towards this frame's (more than 0.01 stop)."""
+        s, f = self.smoother.state, self._frame_stats
+        return (s is not None and f is not None and not self.settings.stats_lock
+                and float(np.abs(s.scalars()[:6] - f.scalars()[:6]).max()) > 0.01)
+
     @property
     def busy(self) -> bool:
         """Work in flight that will change the image: a load, a sort or a focus pull."""
-        return self.loading is not None or self.sorter.pending or self.pull.active
+        return self.loading is not None or self.sorter.pending or self.pull.active or self.adapting
 
     @property
     def settled(self) -> bool:
@@ -341,21 +448,26 @@ class Viewer:
                        "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist(),
                        "name": camera.name},
             "lens": {"focus": lens.focus, "aperture": lens.aperture},
-            "tonemap": {"exposure": tm.exposure, "gamma": tm.gamma, "background": list(tm.background)},
+            "tonemap": {"exposure": tm.exposure, "gamma": tm.gamma, "background": list(tm.background),
+                        "operator": tm.operator.name, "params": tm.operator.params(),
+                        "stats": json.loads(self.smoother.state.to_json()) if self.smoother.state is not None
+                        and tm.operator.adaptive else None, "locked": self.settings.stats_lock},
             "render": {"tau": rs.tau, "k": rs.k, "opacity_norm": rs.opacity_norm, "blend_linear": rs.blend_linear,
                        "near": rs.near},
             "colour_space": self.settings.colour_space, "focus_aid": self.settings.focus_aid,
             "focus_pull_target": self.pull.target, "pivot": self.controls.pivot.tolist(),
-            "show_help": self.show_help, "fly_mode": self.fly_mode,
+            "show_help": self.show_help, "fly_mode": self.fly_mode, "up": self.up.tolist(), "up_label": self.up_label,
+            "depth_span": list(self.depth_span), "view_index": self.view_index, "views": len(self.cameras),
             "drawn": self.renderer.stats.drawn, "total": self.renderer.stats.total,
             "sort_ms": self.renderer.stats.sort_ms, "frames": self.frames,
             "message": self.message, "error": self.error, "command": self.command_line(),
             "clipboard": self.window.clipboard(), "sort_requests": self.sort_requests,
-            "splat_draws": self.splat_draws,
+            "splat_draws": self.splat_draws, "lens_samples": self.progressive.samples,
         }
 
     def close(self) -> None:
         self.sorter.close()
+        self.progressive.release()
         self.renderer.release()
 
     def with_render(self, **changes) -> None:

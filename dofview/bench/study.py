@@ -1,0 +1,266 @@
+"""Depth of field against the physical thin lens on real scenes (issue 14).
+
+Real scenes come without cameras, so the study makes its own: ``views`` look-at cameras on an arc
+around the scene's robust bounds. Per view it takes two focus distances (percentiles of the
+pinhole depth image) and two apertures (the A whose circle of confusion reaches a given radius in
+pixels at the 5th/95th depth percentile, whichever is farther from focus), so that every scene gets
+comparable blur whatever its units. Every single-pass variant is scored against the physical
+truth: the linear-light average of ``ref_samples`` pinhole images over the lens disk (accumulate.py),
+and timed round-robin against the others on the same frames (ratios only: a shared machine).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+import numpy as np
+
+from dofview.bench.runner import time_round_robin
+from dofview.bench.timing import FrameTimer
+from dofview.bench.variants import errors, make_references, pinhole_settings
+from dofview.camera import Camera, look_at
+from dofview.frame import RenderSettings
+from dofview.framing import extent, guess_up, overview_camera
+from dofview.lens import Lens
+from dofview.progress import Progress
+from dofview.rendering.progressive import ProgressiveLens
+from dofview.rendering.quads import QuadBackend
+from dofview.scene import GaussianScene
+from dofview.tonemap import Tonemap
+
+ANCHOR_KS = {"k=1/9 (CineGS)": 1 / 9, "k=1/4": 1 / 4, "k=1 (Spark)": 1.0}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One camera and lens of the study."""
+
+    view: int
+    camera: Camera
+    lens: Lens
+    focus_pct: float
+    coc_px: float
+
+
+def study_views(scene: GaussianScene, n: int, width: int, height: int, fov_deg: float = 50.0,
+                arc_deg: float = 60.0) -> list[Camera]:
+    """``n`` cameras on a horizontal arc of ``arc_deg``: the viewer's overview camera (framing.py:
+    robust box, guessed up) turned about the world up through the point it looks at."""
+    up = guess_up(scene).vector
+    base = overview_camera(scene, width, height, fov_deg, up)
+    eye, fwd = base.centre, base.forward
+    centre, _ = extent(scene)
+    pivot = eye + fwd * float((centre - eye) @ fwd)
+    cams = []
+    for i in range(n):
+        az = math.radians(arc_deg) * ((i / (n - 1)) - 0.5) if n > 1 else 0.0
+        off = eye - pivot
+        # Rodrigues' rotation of the eye about ``up`` through the pivot
+        rot = off * math.cos(az) + np.cross(up, off) * math.sin(az) + up * float(up @ off) * (1 - math.cos(az))
+        cams.append(look_at(pivot + rot, pivot, width, height, fov_deg, up=tuple(up)))
+    return cams
+
+
+def depth_percentiles(frame, pcts) -> list[float]:
+    """Coverage-weighted percentiles of the depth image (scene units) of a pinhole frame."""
+    a = frame.rgba[..., 3].ravel().astype(np.float64)
+    z = frame.depth.ravel().astype(np.float64)
+    keep = (a > 0.05) & (z > 0)
+    z, a = z[keep], a[keep]
+    order = np.argsort(z)
+    cw = np.cumsum(a[order]) / a.sum()
+    return [float(z[order][np.searchsorted(cw, p / 100.0)]) for p in pcts]
+
+
+def study_cases(renderer: QuadBackend, cameras: list[Camera], focus_pcts=(30.0, 70.0),
+                cocs=(6.0, 16.0)) -> list[Case]:
+    """Two focus distances × two apertures per camera (see the module docstring)."""
+    out = []
+    pin = pinhole_settings(RenderSettings())
+    for v, cam in enumerate(cameras):
+        fr = renderer.render(cam, Lens(1.0, 0.0), pin)
+        z5, z95, *zf = depth_percentiles(fr, (5.0, 95.0, *focus_pcts))
+        for fp, f in zip(focus_pcts, zf):
+            span = max(abs(1 / z5 - 1 / f), abs(1 / z95 - 1 / f))
+            for c in cocs:
+                out.append(Case(v, cam, Lens(f, 2.0 * c / span), fp, c))
+    return out
+
+
+def study_variants() -> dict[str, RenderSettings]:
+    """The single-pass settings of the table: pinhole, the anchors (energy normalisation, the
+    reference rasteriser's α ≥ 1/255 cut), the previous default, and the current default."""
+    anchor = RenderSettings(tau=1 / 255, k=1 / 4, opacity_norm="energy", blend_linear=False, cut="drop")
+    out = {"pinhole": anchor}
+    out.update({name: replace(anchor, k=k) for name, k in ANCHOR_KS.items()})
+    out["previous default (k=1/4, drop)"] = anchor
+    out["default"] = RenderSettings()
+    return out
+
+
+def run_study(scene: GaussianScene, cases: list[Case], variants: dict[str, RenderSettings], ref_samples: int,
+              acc_samples=(1, 2, 4, 8, 16, 32, 64), frames: int = 3, tm: Tonemap = Tonemap()) -> list[dict]:
+    """Rows of (case, method, samples, psnr, ssim, time_ratio) for every variant and every count of
+    the progressive accumulation (the viewer's, rendering/progressive.py: its R2 lens points, not
+    the reference's spiral, so even at ``ref_samples`` it is a separate estimate). ``time_ratio``
+    is the median frame time over that of the pinhole frame at the default τ on the same camera,
+    all timed round-robin; accumulation counts n pinhole frames (τ = 0). The variant named
+    "pinhole" is drawn at aperture 0."""
+    renderer = QuadBackend(scene)
+    timer = FrameTimer(renderer.ctx)
+    hdr = scene.colour_space == "linear"
+    base = RenderSettings()
+    rows: list[dict] = []
+    steps = len(cases) * (ref_samples + max(acc_samples) + len(variants) * (frames + 2) + frames + 1)
+    with Progress("study", steps) as prog:
+        done = [0]
+
+        def tick() -> None:
+            done[0] += 1
+            prog.update(done[0])
+
+        for case in cases:
+            cam, lens = case.camera, case.lens
+            pin = Lens(lens.focus, 0.0)
+            lenses = [pin if name == "pinhole" else lens for name in variants]
+            jobs = [(renderer, cam, pin, base)] + [(renderer, cam, ln, st) for ln, st in zip(lenses, variants.values())]
+            times = time_round_robin(jobs, timer, frames, 1, tick)
+            pin_ms = times[0]["wall_med_ms"]
+            truth = make_references(renderer, cam, lens, base, ref_samples, False, tick).physical
+            info = {"view": case.view, "focus": lens.focus, "aperture": lens.aperture,
+                    "focus_pct": case.focus_pct, "coc_px": case.coc_px}
+            acc = ProgressiveLens(renderer)
+            for n in range(1, max(acc_samples) + 1):
+                acc.add(cam, lens, base)
+                tick()
+                if n in acc_samples:
+                    acc.resolve()
+                    e = errors(renderer.read(), truth, tm, hdr)
+                    rows.append({**info, "method": f"accumulation {n}", "samples": n, **e, "time_ratio": float(n)})
+            acc.release()
+            for (name, st), ln, t in zip(variants.items(), lenses, times[1:]):
+                e = errors(renderer.render(cam, ln, st), truth, tm, hdr)
+                tick()
+                rows.append({**info, "method": name, "samples": 1, **e, "time_ratio": t["wall_med_ms"] / pin_ms})
+    renderer.release()
+    return rows
+
+
+def summarise(rows: list[dict]) -> dict[str, dict[str, float]]:
+    """Per method: mean PSNR (of per-case PSNR), mean SSIM, mean time ratio."""
+    out: dict[str, dict[str, float]] = {}
+    for name in dict.fromkeys(r["method"] for r in rows):
+        rs = [r for r in rows if r["method"] == name]
+        out[name] = {k: float(np.mean([r[k] for r in rs])) for k in ("psnr", "ssim", "time_ratio")}
+    return out
+
+
+def pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The (time, PSNR) points no other point beats on both (faster or as fast, and better)."""
+    front, best = [], -math.inf
+    for t, p in sorted(points, key=lambda x: (x[0], -x[1])):
+        if p > best:
+            front.append((t, p))
+            best = p
+    return front
+
+
+def plot_study(path, name: str, summary: dict[str, dict[str, float]], ref_samples: int) -> None:
+    """PSNR against the physical truth over frame time (ratio to the pinhole frame): the progressive
+    accumulation curve, the single-pass variants and the Pareto front of all of them."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    acc = [(v["time_ratio"], v["psnr"], m) for m, v in summary.items() if m.startswith("accumulation")]
+    ax.plot([a[0] for a in acc], [a[1] for a in acc], "o-", color="black", ms=3, label="thin-lens accumulation (n passes)")
+    for t, p, m in acc:
+        ax.annotate(m.split()[1], (t, p), textcoords="offset points", xytext=(3, -10), fontsize=7)
+    single = [(v["time_ratio"], v["psnr"], m) for m, v in summary.items() if not m.startswith("accumulation")]
+    for (t, p, m), mk in zip(single, "sv^D<>ph*"):
+        style = dict(ms=13, mfc="none", mew=2, color="red") if m == "default" else dict(ms=7)
+        ax.plot([t], [p], mk if m != "default" else "o", label=m, **style)
+    front = pareto([(t, p) for t, p, _ in acc + single])
+    ax.step([f[0] for f in front], [f[1] for f in front], where="post", color="grey", alpha=0.6, lw=3, zorder=0,
+            label="Pareto front")
+    ax.set_xscale("log")
+    ax.set_xlabel("frame time / pinhole frame (τ default), llvmpipe")
+    ax.set_ylabel(f"PSNR vs physical thin lens ({ref_samples} samples), dB")
+    ax.set_title(name)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def fixed_aperture_ratio(scene: GaussianScene, cases: list[Case], aperture: float = 100.0, frames: int = 7) -> dict:
+    """Median frame time at aperture ``aperture`` (default and previous-default settings) over the
+    pinhole frame at the default τ, per distinct camera and focus of ``cases``, timed round-robin."""
+    renderer = QuadBackend(scene)
+    timer = FrameTimer(renderer.ctx)
+    prev = study_variants()["previous default (k=1/4, drop)"]
+    out = {"default": [], "previous default": []}
+    seen = set()
+    for c in cases:
+        if (c.view, c.lens.focus) in seen:
+            continue
+        seen.add((c.view, c.lens.focus))
+        jobs = [(renderer, c.camera, Lens(c.lens.focus, 0.0), RenderSettings()),
+                (renderer, c.camera, Lens(c.lens.focus, aperture), RenderSettings()),
+                (renderer, c.camera, Lens(c.lens.focus, aperture), prev)]
+        t = [x["wall_med_ms"] for x in time_round_robin(jobs, timer, frames, 1, lambda: None)]
+        out["default"].append(t[1] / t[0])
+        out["previous default"].append(t[2] / t[0])
+    renderer.release()
+    return {k: float(np.mean(v)) for k, v in out.items()}
+
+
+def table_lines(name: str, summary: dict[str, dict[str, float]], count: int, n_cases: int) -> list[str]:
+    """The issue's table for one scene: PSNR / SSIM / frame-time ratio per method."""
+    lines = [f"**{name}** ({count:,} Gaussians, {n_cases} cases)", "",
+             "| method | PSNR (dB) | SSIM | frame time / pinhole |", "|---|---|---|---|"]
+    for m, v in summary.items():
+        lines.append(f"| {m} | {v['psnr']:.2f} | {v['ssim']:.4f} | {v['time_ratio']:.2f} |")
+    return lines + [""]
+
+
+def run_cli(args) -> int:
+    """``dofview bench SCENE --views N``: the study on one scene, into ``--out``."""
+    import sys
+    import time as _time
+
+    from dofview.bench.report import write_csv
+    from dofview.options import load_scene_arg
+
+    scene = load_scene_arg(args)
+    w = args.width or args.bench_width
+    h = args.height or w * 3 // 4
+    out = args.out or __import__("pathlib").Path(f"study_{args.scene.stem}")
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = _time.perf_counter()
+    r = QuadBackend(scene)
+    cases = study_cases(r, study_views(scene, args.views, w, h), args.focus_pct, args.coc_px)
+    r.release()
+    ref = args.ref_samples or 128
+    acc = tuple(n for n in (1, 2, 4, 8, 16, 32, 64, 128, 256) if n <= ref)
+    rows = run_study(scene, cases, study_variants(), ref, acc, args.frames or 3, Tonemap(exposure=2.0 ** args.exposure))
+    summary = summarise(rows)
+    write_csv(out / "study.csv", rows)
+    name = args.scene.name
+    plot_study(out / "study.png", name, summary, ref)
+    argv = sys.argv[1:]
+    command = "dofview " + " ".join(argv[argv.index("bench"):] if "bench" in argv else argv)
+    lines = [f"# Depth of field against the physical thin lens: {name}", "",
+             f"`{command}` ({_time.perf_counter() - t0:.0f} s); {w}×{h} px, {args.views} views × focus at depth "
+             f"percentiles {', '.join(f'{p:g}' for p in args.focus_pct)} × CoC {', '.join(f'{c:g}' for c in args.coc_px)} px; "
+             f"truth: {ref} lens samples, linear light; renderer {QuadBackend.name}.", ""]
+    fixed = fixed_aperture_ratio(scene, cases)
+    lines += table_lines(name, summary, scene.count, len(cases))
+    lines.append(f"A = 100 (px·unit): frame time / pinhole at the default τ: default {fixed['default']:.2f}×, "
+                 f"previous default {fixed['previous default']:.2f}× (mean over views and focus distances)")
+    (out / "study.md").write_text("\n".join(lines) + "\n")
+    print(f"{out}: study.csv, study.md, study.png", file=sys.stderr)
+    return 0

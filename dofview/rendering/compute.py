@@ -1,0 +1,273 @@
+"""The compute backend: a GPU-resident tile rasteriser in GLSL compute shaders.
+
+Per frame, all on the GPU: (the depth sort, only when the view moved: depth keys of all Gaussians
+and a radix sort, gpusort.py) → preprocess, one thread per Gaussian (project.glsl, the quad path's
+projection, CoC and opacity normalisation; the support box → a rectangle of tiles, 16×16 pixels on a GPU, 8×8 on llvmpipe) → count
+and scan the tiles each Gaussian touches, in depth order → duplicate one (tile, Gaussian) pair per
+touched tile → stable radix sort by tile (the depth order survives within each tile) → each tile's
+range → blend each tile front to back in one workgroup (lens.glsl's alpha, float32, early stop at
+T < 1e-4) straight into the Renderer's colour/depth targets. Only the pair count comes back to the
+CPU (4 bytes), to size the pair buffers.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from dofview.camera import Camera
+from dofview.errors import BackendUnavailable, DofviewError
+from dofview.frame import RenderSettings
+from dofview.lens import Lens
+from dofview.rendering.base import Renderer
+from dofview.rendering.gpusort import GpuRadixSort, _program, groups, max_buffer_bytes, require_compute
+from dofview.rendering.uniforms import set_projection_uniforms
+from dofview.scene import GaussianScene
+
+TILE_LLVMPIPE = 8
+"""Tile side on Mesa llvmpipe: 1.6–1.9× faster frames than 16 there (docs/BENCHMARKS.md, "Compute
+backend"): fewer wasted evaluations of ~1-pixel splats over a tile's pixels, which dominate a CPU."""
+TILE_GPU = 16
+PIX = 2  # pixels per thread along each axis in the blend
+LLVMPIPE_RUN = 60_000 // (PIX * PIX + 1)
+"""Most splats one blend pass takes from a tile on llvmpipe, which ends an invocation's loops after
+65535 iterations in all; a longer tile is blended in passes."""
+SPLAT_BYTES = 48  # glsl/splat_record.glsl: Splat
+PER_GAUSSIAN_BYTES = SPLAT_BYTES + 8 + 4 + 4 + 4  # splat, tile rectangle, depth key, order, tile count
+"""GPU bytes per Gaussian that this backend adds to the scene's buffers (besides the pair buffers)."""
+
+
+class ComputeBackend(Renderer):
+    """The compute tile rasteriser (see the module docstring; :class:`Renderer` for the arguments).
+
+    Raises:
+        BackendUnavailable: the GL lacks compute shaders (OpenGL < 4.3).
+        DofviewError: the scene's per-Gaussian buffers exceed this GL's storage-buffer limit.
+    """
+
+    name = "compute"
+    gpu_sort = True
+
+    def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True,
+                 max_pairs: int | None = None, tile: int | None = None) -> None:
+        super().__init__(scene, ctx, packed)
+        require_compute(self.ctx)
+        self.limit = max_buffer_bytes(self.ctx)
+        n = max(scene.count, 1)
+        if SPLAT_BYTES * n > self.limit:
+            raise DofviewError(f"{scene.count} Gaussians need a {SPLAT_BYTES * n / 2**20:.0f} MiB splat buffer; this "
+                               f"OpenGL binds at most {self.limit / 2**20:.0f} MiB (use --raster quad)")
+        self.max_pairs = min(max_pairs or self.limit // 4, self.limit // 4)
+        """Most (tile, Gaussian) pairs one pass holds; a frame with more is drawn in depth slices."""
+        self.tile = tile or (TILE_LLVMPIPE if "llvmpipe" in self.ctx.info["GL_RENDERER"] else TILE_GPU)
+        """Tile side in pixels (a workgroup of tile × tile threads blends one tile)."""
+        self.max_run = LLVMPIPE_RUN if "llvmpipe" in self.ctx.info["GL_RENDERER"] else None
+        """Most splats of one tile a blend pass takes (None: all)."""
+        self.sorter = GpuRadixSort(self.ctx)
+        defs = self.shader_defines
+        self._keys_prog = _program(self.ctx, "sort_depth_keys.comp", defs)
+        self._pre = _program(self.ctx, "tiles_preprocess.comp", {**defs, "TILE": f"{self.tile}u"})
+        self._count = _program(self.ctx, "tiles_count.comp")
+        self._dup = _program(self.ctx, "tiles_duplicate.comp")
+        self._ranges_prog = _program(self.ctx, "tiles_ranges.comp")
+        self._longest_prog = _program(self.ctx, "tiles_longest.comp")
+        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // PIX}u", "PIX": f"{PIX}u"})
+        self._depth_keys = self.ctx.buffer(reserve=4 * n)
+        self._order = self.ctx.buffer(reserve=4 * n)
+        self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)
+        self._rects = self.ctx.buffer(reserve=8 * n)
+        self._offsets = self.ctx.buffer(reserve=4 * (n + 1))
+        self._counter = self.ctx.buffer(reserve=4)
+        self._longest = self.ctx.buffer(reserve=4)
+        self._pairs: list[moderngl.Buffer] = []  # tile keys, values, and the two sort scratch buffers
+        self._pair_capacity = 0
+        self._ranges: moderngl.Buffer | None = None
+        self._view_key: bytes | None = None
+        self.pairs = 0
+        """(tile, Gaussian) pairs of the last draw."""
+        self.slices = 0
+        """Depth slices the last draw needed (1 unless its pairs exceeded :attr:`max_pairs`)."""
+
+    @property
+    def gpu_bytes(self) -> int:
+        """Bytes of GPU storage: the scene's buffers, the per-Gaussian buffers and the pair
+        buffers as now allocated (they grow to the largest frame drawn)."""
+        own = (self._depth_keys, self._order, self._splats, self._rects, self._offsets, *self._pairs)
+        return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes
+
+    # ---- depth order ---------------------------------------------------------------------------
+    def sort(self, camera: Camera) -> None:
+        """Sort all Gaussians front to back on the GPU if the view moved (nothing is read back)."""
+        key = camera.view_key()
+        if key == self._view_key or not self.scene.count:
+            return
+        n = self.scene.count
+        self._bind_scene()
+        set_projection_uniforms(self._keys_prog, camera, Lens(), RenderSettings())
+        self._keys_prog["u_n"].value = n
+        self._depth_keys.bind_to_storage_buffer(3)
+        self._order.bind_to_storage_buffer(4)
+        self._keys_prog.run(*groups(-(-n // 256)))
+        self.ctx.memory_barrier()
+        scratch = self._pair_buffers(n)[2:]
+        out = self.sorter.sort(self._depth_keys, self._order, n, 32, *scratch)
+        assert out[1] is self._order  # four passes: the result is back in the input pair
+        self._view_key = key
+
+    def front_to_back(self) -> np.ndarray:
+        """(N,) uint32 the current depth order, read back (for tests and tools; drawing never reads it)."""
+        return np.frombuffer(self._order.read(size=4 * self.scene.count), np.uint32).copy()
+
+    # ---- buffers -------------------------------------------------------------------------------
+    def _bind_scene(self) -> None:
+        for binding, buf in self._buffers.items():
+            buf.bind_to_storage_buffer(binding)
+
+    def _pair_buffers(self, pairs: int) -> list[moderngl.Buffer]:
+        """Tile keys, values and sort scratch for ``pairs`` pairs (grown by half again, never past
+        the storage-buffer limit)."""
+        if pairs > self._pair_capacity:
+            for b in self._pairs:
+                b.release()
+            cap = max(pairs, min(pairs * 3 // 2, self.limit // 4))
+            self._pairs = [self.ctx.buffer(reserve=4 * cap) for _ in range(4)]
+            self._pair_capacity = cap
+        return self._pairs
+
+    # ---- drawing -------------------------------------------------------------------------------
+    def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
+             count: bool = False, sort: bool = True) -> None:
+        """Rasterise the scene into the float targets (no read-back but the 4-byte pair count).
+        ``sort=False`` keeps the last depth order (a view change then draws with a stale order)."""
+        w, h = camera.width, camera.height
+        self._targets(w, h)
+        if sort or self._view_key is None:
+            self.sort(camera)
+        self.camera, self.lens = camera, lens
+        tiles = (-(-w // self.tile), -(-h // self.tile))
+        n = self.scene.count
+        if count:
+            self._counter.write(np.zeros(1, np.uint32).tobytes())
+        slices = [(0, 0, 0, 0)]
+        self.pairs = 0
+        if n:
+            self._preprocess(camera, lens, settings, count, tiles)
+            self.pairs = self._scan_counts(n)
+            slices = self._slices(n, self.pairs)
+        self.slices = len(slices)
+        self._ranges_for(tiles)
+        self.colour_tex.bind_to_image(0, read=True, write=True)
+        self.depth_tex.bind_to_image(1, read=True, write=True)
+        for i, part in enumerate(slices):
+            self._draw_slice(*part, tiles, settings.tau, resume=i > 0)
+        self._encoded = self.encoded_scene and not settings.blend_linear
+        if count:
+            self.stats.drawn = int(np.frombuffer(self._counter.read(), np.uint32)[0])
+
+    def _preprocess(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
+                    tiles: tuple[int, int]) -> None:
+        p = self._pre
+        set_projection_uniforms(p, camera, lens, settings)
+        p["u_n"].value = self.scene.count
+        p["u_count"].value = count
+        p["u_tiles"].value = tiles
+        self._bind_scene()
+        self._splats.bind_to_storage_buffer(3)
+        self._rects.bind_to_storage_buffer(4)
+        self._counter.bind_to_storage_buffer(5)
+        p.run(*groups(-(-self.scene.count // 256)))
+        self.ctx.memory_barrier()
+
+    def _scan_counts(self, n: int) -> int:
+        """Tiles touched per Gaussian in depth order, scanned to first-pair offsets; the total."""
+        self._order.bind_to_storage_buffer(0)
+        self._rects.bind_to_storage_buffer(1)
+        self._offsets.bind_to_storage_buffer(2)
+        self._count["u_n"].value = n
+        self._count.run(*groups(-(-(n + 1) // 256)))
+        self.ctx.memory_barrier()
+        self.sorter.scan.run(self._offsets, n + 1)
+        return int(np.frombuffer(self._offsets.read(size=4, offset=4 * n), np.uint32)[0])
+
+    def _slices(self, n: int, total: int) -> list[tuple[int, int, int, int]]:
+        """Depth slices (first, end Gaussian in depth order, first pair, pairs) whose pairs fit
+        :attr:`max_pairs`. The offsets are read back only when there is more than one."""
+        if total <= self.max_pairs:
+            return [(0, n, 0, total)]
+        offsets = np.frombuffer(self._offsets.read(size=4 * (n + 1)), np.uint32).astype(np.int64)
+        if np.any(np.diff(offsets) > self.max_pairs):
+            raise DofviewError(f"one Gaussian covers more than {self.max_pairs} tiles; this OpenGL's storage buffers "
+                               "are too small for the compute backend (use --raster quad)")
+        slices, first = [], 0
+        while first < n:
+            end = int(np.searchsorted(offsets, offsets[first] + self.max_pairs, side="right")) - 1
+            end = n if end >= n else end
+            slices.append((first, end, int(offsets[first]), int(offsets[end] - offsets[first])))
+            first = end
+        return slices
+
+    def _ranges_for(self, tiles: tuple[int, int]) -> None:
+        size = 8 * tiles[0] * tiles[1]
+        if self._ranges is None or self._ranges.size != size:
+            if self._ranges is not None:
+                self._ranges.release()
+            self._ranges = self.ctx.buffer(reserve=size)
+
+    def _draw_slice(self, first: int, end: int, base: int, pairs: int, tiles: tuple[int, int], tau: float,
+                    resume: bool) -> None:
+        """Duplicate, sort and blend Gaussians [first, end) of the depth order (pairs from ``base``)."""
+        keys, vals, *scratch = self._pair_buffers(max(pairs, self.scene.count, 1))
+        if pairs:
+            d = self._dup
+            d["u_first"].value = first
+            d["u_n"].value = end - first
+            d["u_base"].value = base
+            d["u_tiles_x"].value = tiles[0]
+            for binding, buf in enumerate((self._order, self._rects, self._offsets, keys, vals)):
+                buf.bind_to_storage_buffer(binding)
+            d.run(*groups(-(-(end - first) // 256)))
+            self.ctx.memory_barrier()
+            bits = max((tiles[0] * tiles[1] - 1).bit_length(), 1)
+            keys, vals = self.sorter.sort(keys, vals, pairs, bits, *scratch)
+        self._ranges.clear()
+        if pairs:
+            keys.bind_to_storage_buffer(0)
+            self._ranges.bind_to_storage_buffer(1)
+            self._ranges_prog["u_n"].value = pairs
+            self._ranges_prog.run(*groups(-(-pairs // 256)))
+            self.ctx.memory_barrier()
+        b = self._blend
+        b["u_tau"].value = tau
+        b["u_size"].value = (self.camera.width, self.camera.height)
+        b["u_tiles_x"].value = tiles[0]
+        run = self.max_run if self.max_run is not None and pairs > self.max_run else None
+        b["u_take"].value = run or 0xFFFFFFFF
+        for skip in range(0, self._longest_range(tiles) if run else 1, run or 1):
+            b["u_skip"].value = skip
+            b["u_resume"].value = resume or skip > 0
+            self._splats.bind_to_storage_buffer(0)
+            vals.bind_to_storage_buffer(1)
+            self._ranges.bind_to_storage_buffer(2)
+            b.run(*tiles)
+            self.ctx.memory_barrier()
+
+    def _longest_range(self, tiles: tuple[int, int]) -> int:
+        """The most pairs any tile holds (a 4-byte read-back)."""
+        self._longest.write(np.zeros(1, np.uint32).tobytes())
+        self._ranges.bind_to_storage_buffer(0)
+        self._longest.bind_to_storage_buffer(1)
+        self._longest_prog["u_n"].value = tiles[0] * tiles[1]
+        self._longest_prog.run(*groups(-(-tiles[0] * tiles[1] // 256)))
+        self.ctx.memory_barrier()
+        return int(np.frombuffer(self._longest.read(), np.uint32)[0])
+
+    def _release_backend(self) -> None:
+        for obj in (self._depth_keys, self._order, self._splats, self._rects, self._offsets, self._counter,
+                    self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
+                    self._ranges_prog, self._longest_prog, self._blend):
+            if obj is not None:
+                obj.release()
+        self.sorter.release()
+
+
+__all__ = ["ComputeBackend", "BackendUnavailable", "PER_GAUSSIAN_BYTES"]

@@ -1,0 +1,84 @@
+#version 430
+// Compute rasteriser, step 5: one workgroup per TILE x TILE tile, each thread blending a PIX x PIX
+// block of pixels (one load of a splat serves PIX^2 pixels), the tile's splats front to back in
+// float32 (lens.glsl: splat_alpha, the same alpha, clamp and cuts as quads.frag), stopping once
+// the block's transmittance has fallen below T_MIN everywhere. Writes the Renderer targets:
+// premultiplied colour and coverage, and (sum w z, sum w / z, 0, sum w), w = alpha T. With
+// u_resume the targets already hold the nearer part of the scene (a depth slice or an earlier
+// pass) and blending continues from them. GROUP (threads along a side) and PIX are #defined.
+layout(local_size_x = GROUP, local_size_y = GROUP) in;
+
+#include "lens.glsl"
+#include "splat_record.glsl"
+
+layout(std430, binding = 0) readonly buffer Splats { Splat splats[]; };
+layout(std430, binding = 1) readonly buffer TileVals { uint tile_vals[]; };
+layout(std430, binding = 2) readonly buffer Ranges { uvec2 ranges[]; };
+layout(rgba32f, binding = 0) uniform image2D u_colour;
+layout(rgba32f, binding = 1) uniform image2D u_depth;
+uniform float u_tau;
+uniform ivec2 u_size;
+uniform uint u_tiles_x;
+uniform bool u_resume;
+uniform uint u_skip;
+uniform uint u_take;
+
+const float T_MIN = 1e-4;
+const uint TILE = GROUP * PIX;
+const int N = int(PIX * PIX);
+
+void main() {
+    ivec2 first = ivec2(gl_WorkGroupID.xy * TILE + gl_LocalInvocationID.xy * PIX);
+    ivec2 px[N];
+    vec3 rgb[N];
+    float T[N], wz[N], wiz[N];
+    bool live = false;  // some pixel of the block inside the image and not yet opaque
+    for (int k = 0; k < N; ++k) {
+        px[k] = first + ivec2(k % int(PIX), k / int(PIX));
+        rgb[k] = vec3(0.0);
+        T[k] = 1.0;
+        wz[k] = 0.0;
+        wiz[k] = 0.0;
+        bool inside = px[k].x < u_size.x && px[k].y < u_size.y;
+        if (u_resume && inside) {
+            vec4 c = imageLoad(u_colour, px[k]);
+            vec4 d = imageLoad(u_depth, px[k]);
+            rgb[k] = c.rgb;
+            T[k] = 1.0 - c.a;
+            wz[k] = d.x;
+            wiz[k] = d.y;
+        }
+        if (!inside) T[k] = 0.0;  // never blended, never stored
+        live = live || T[k] >= T_MIN;
+    }
+    uvec2 range = ranges[gl_WorkGroupID.y * u_tiles_x + gl_WorkGroupID.x];
+    // A pass blends at most u_take splats of the tile from the u_skip-th on (llvmpipe ends an
+    // invocation's loops after 65535 iterations in all, so a longer tile is blended in passes).
+    range.x = min(range.y, range.x + u_skip);
+    range.y = range.x + min(range.y - range.x, u_take);
+    // Every thread reads the same splat at the same time (a broadcast): no shared-memory staging,
+    // which on llvmpipe costs more than the loads it saves.
+    for (uint j = range.x; j < range.y && live; ++j) {
+        uint g = tile_vals[j];
+        vec4 a = splats[g].a;
+        vec4 b = splats[g].b;
+        vec3 colour = splats[g].c.rgb;
+        live = false;
+        for (int k = 0; k < N; ++k) {
+            if (T[k] < T_MIN) continue;
+            float alpha = splat_alpha(vec2(px[k]) + 0.5 - a.xy, a.zw, b.xy, b.z, u_tau);
+            float w = alpha * T[k];
+            rgb[k] += colour * w;
+            wz[k] += b.w * w;
+            wiz[k] += w / b.w;
+            T[k] *= 1.0 - alpha;
+            live = live || T[k] >= T_MIN;
+        }
+    }
+    for (int k = 0; k < N; ++k) {
+        if (px[k].x < u_size.x && px[k].y < u_size.y) {
+            imageStore(u_colour, px[k], vec4(rgb[k], 1.0 - T[k]));
+            imageStore(u_depth, px[k], vec4(wz[k], wiz[k], 0.0, 1.0 - T[k]));
+        }
+    }
+}

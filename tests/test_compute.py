@@ -1,0 +1,211 @@
+"""The compute tile rasteriser (rendering/compute.py) against the quad backend, the CPU reference
+and its own stages: samples and a real scene, tile-boundary cases (a splat on a tile corner, one
+larger than the screen, > 65k splats in one tile), depth slices, refusals, the CLI."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import assert_matches_reference, psnr, random_scene
+
+from dofview.bench import synth
+from dofview.camera import Camera, framing_camera, look_at
+from dofview.cli import main
+from dofview.errors import BackendUnavailable, DofviewError
+from dofview.frame import RenderSettings
+from dofview.io import load_scene
+from dofview.io.cameras import load_cameras_json
+from dofview.io.exr import read_exr
+from dofview.lens import Lens
+from dofview.rendering import AUTO_ORDER, get_backend
+from dofview.rendering import compute as compute_mod
+from dofview.rendering.compute import PER_GAUSSIAN_BYTES, ComputeBackend
+from dofview.rendering.gpusort import require_compute
+from dofview.rendering.quads import QuadBackend
+from dofview.rendering.reference import project, render_reference
+from dofview.scene import GaussianScene
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SCENES = Path(__file__).resolve().parents[2] / "shared" / "scenes"
+CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
+
+
+def assert_same_image(a, b, min_db=45.0):
+    """Linear RGBA PSNR (peak: the brightest value, at least 1) and depth where both are covered."""
+    peak = max(float(b.rgba.max()), 1.0)
+    assert psnr(a.rgba, b.rgba, peak) >= min_db
+    both = (a.alpha > 0.5) & (b.alpha > 0.5)
+    if both.any():
+        assert np.max(np.abs(a.depth[both] - b.depth[both]) / b.depth[both]) <= 1e-3
+
+
+@pytest.mark.parametrize("name", ["cards", "lamp"])
+@pytest.mark.parametrize("aperture", [0.0, 100.0])
+def test_compute_matches_quad_on_samples(name, aperture):
+    scene = load_scene(SAMPLES / f"{name}.ply", progress=False)
+    cam = load_cameras_json(SAMPLES / f"{name}_cameras.json")[2].resized(160, 120)
+    lens = Lens({"cards": 4.0, "lamp": synth.LAMP_DEPTH}[name], aperture)
+    assert_same_image(ComputeBackend(scene).render(cam, lens), QuadBackend(scene).render(cam, lens))
+
+
+@pytest.mark.parametrize("file", ["two_planes.ply", "burger.ply"])
+def test_compute_matches_quad_on_a_real_scene(file):
+    scene = load_scene(SCENES / file, progress=False)
+    cam = framing_camera(scene, 160, 120)
+    focus = float(np.linalg.norm(cam.centre - scene.means.mean(0)))
+    for aperture in (0.0, 60.0):
+        lens = Lens(focus, aperture)
+        assert_same_image(ComputeBackend(scene).render(cam, lens), QuadBackend(scene).render(cam, lens))
+
+
+def test_preprocess_stage_matches_reference_projection():
+    """The per-Gaussian records read back (centre, blurred covariance with the CoC, o′, depth)
+    against rendering.reference.project, in float64, for every Gaussian the kernel kept."""
+    scene = random_scene(degree=1, seed=12)
+    settings = RenderSettings(tau=1 / 255)
+    lens = Lens(4.0, 70.0)
+    r = ComputeBackend(scene, packed=False)
+    r.draw(CAM, lens, settings)
+    rec = np.frombuffer(r._splats.read(), np.float32).reshape(-1, 12).astype(np.float64)
+    rects = np.frombuffer(r._rects.read(), np.uint32).reshape(-1, 2)
+    drawn = np.nonzero((rects[:, 1] & 0xFFFF) > (rects[:, 0] & 0xFFFF))[0]
+    pr = project(scene, CAM, lens, settings)
+    assert set(drawn) <= set(pr["idx"]) and len(drawn) > 0.5 * len(pr["idx"])
+    at = {g: i for i, g in enumerate(pr["idx"])}
+    sel = np.array([at[g] for g in drawn])
+    h = CAM.height
+    np.testing.assert_allclose(rec[drawn, 0], pr["mean2d"][sel, 0], atol=1e-3)
+    np.testing.assert_allclose(h - rec[drawn, 1], pr["mean2d"][sel, 1], atol=1e-3)
+    ax1, ax2 = rec[drawn, 2:4] * [1, -1], rec[drawn, 4:6] * [1, -1]  # back to y down
+    conic = ax1[:, :, None] * ax1[:, None, :] + ax2[:, :, None] * ax2[:, None, :]
+    cov = np.linalg.inv(conic)
+    ref = pr["cov"][sel]
+    np.testing.assert_allclose(cov[:, 0, 0], ref[:, 0], rtol=1e-3)
+    np.testing.assert_allclose(cov[:, 1, 1], ref[:, 2], rtol=1e-3)
+    assert np.all(np.abs(cov[:, 0, 1] - ref[:, 1]) <= 1e-3 * np.sqrt(ref[:, 0] * ref[:, 2]))
+    np.testing.assert_allclose(rec[drawn, 6], pr["opacity"][sel], rtol=1e-4)
+    np.testing.assert_allclose(rec[drawn, 7], pr["depth"][sel], rtol=1e-6)
+
+
+def test_draw_count_and_memory():
+    scene = random_scene(seed=4)
+    c, q = ComputeBackend(scene), QuadBackend(scene)
+    for lens in (Lens(4.5, 0.0), Lens(4.5, 300.0)):
+        c.draw(CAM, lens, count=True)
+        q.draw(CAM, lens, count=True)
+        assert c.stats.drawn == q.stats.drawn > 0
+    assert c.gpu_bytes >= q.gpu_bytes - 4 * scene.count + PER_GAUSSIAN_BYTES * scene.count + 16 * c.pairs
+
+
+def _one(mean, scale, opacity=0.8, colour=(1.0, 0.5, 0.2)) -> GaussianScene:
+    return GaussianScene(means=[mean], quats=[[1, 0, 0, 0]], scales=[scale], opacities=[opacity], sh_dc=[colour],
+                         colour_space="linear")
+
+
+def _pixel_camera(width: int = 64, height: int = 48) -> Camera:
+    """Identity camera with f = 100 px: a point (x, y, 1) lands on pixel (100 x + cx, 100 y + cy)."""
+    return Camera(width, height, 100.0, 100.0, width / 2, height / 2, np.eye(3), np.zeros(3))
+
+
+@pytest.mark.parametrize("aperture", [0.0, 40.0])
+def test_splat_on_a_tile_corner_has_no_seam(aperture):
+    """A splat centred on the corner shared by four tiles: the reference's image, and point-symmetric
+    about the corner (a tile that dropped or cut it would break the symmetry)."""
+    cam = _pixel_camera()
+    t = ComputeBackend(_one([0, 0, 1.0], [0.01] * 3)).tile
+    x, y = 2 * t, 2 * t  # a tile corner, in pixels (y down)
+    scene = _one([(x - cam.cx) / 100.0, (y - cam.cy) / 100.0, 1.0], [0.03, 0.02, 0.01], opacity=0.99)
+    r = ComputeBackend(scene, packed=False)
+    lens, settings = Lens(2.0, aperture), RenderSettings(tau=0.0)
+    frame = r.render(cam, lens, settings)
+    assert r.pairs >= 4
+    assert_same_image(frame, render_reference(scene, cam, lens, settings), min_db=60.0)
+    block = frame.alpha[y - t:y + t, x - t:x + t]
+    assert min(q.max() for q in (block[:t, :t], block[:t, t:], block[t:, :t], block[t:, t:])) > 0.05  # all four tiles
+    np.testing.assert_allclose(block, block[::-1, ::-1], atol=1e-5)
+
+
+def test_splat_larger_than_the_screen():
+    cam = _pixel_camera()
+    scene = _one([0.05, -0.02, 1.0], [3.0, 2.0, 0.1], opacity=0.6)
+    lens = Lens(1.0, 0.0)
+    c = ComputeBackend(scene, packed=False)
+    frame = c.render(cam, lens)
+    tiles = -(-cam.width // c.tile) * -(-cam.height // c.tile)
+    assert c.pairs == tiles  # clamped to the screen's tiles
+    assert frame.alpha.min() > 0.5
+    assert_same_image(frame, QuadBackend(scene, packed=False).render(cam, lens), min_db=60.0)
+
+
+def test_more_than_65k_splats_in_one_tile():
+    """70 000 tiny splats inside one tile at distinct depths: no counter overflows, the tile
+    blends them all (front to back, with early termination) as the quad path does."""
+    rng = np.random.default_rng(5)
+    n = 70_000
+    cam = _pixel_camera()
+    px = rng.uniform(2, 6, (n, 2))  # pixels 2…6: inside the first tile whatever its size
+    z = rng.uniform(1.0, 3.0, n)
+    means = np.stack([(px[:, 0] - cam.cx) / 100 * z, (px[:, 1] - cam.cy) / 100 * z, z], 1)
+    scene = GaussianScene(means=means, quats=np.tile([1.0, 0, 0, 0], (n, 1)), scales=np.full((n, 3), 1e-4),
+                          opacities=rng.uniform(0.005, 0.02, n), sh_dc=rng.uniform(0, 1, (n, 3)),
+                          colour_space="linear")
+    lens = Lens(2.0, 0.0)
+    c = ComputeBackend(scene)
+    c.draw(cam, lens, count=True)
+    assert c.stats.drawn == n and c.pairs >= n
+    ranges = np.frombuffer(c._ranges.read(), np.uint32).reshape(-1, 2)
+    assert (ranges[:, 1] - ranges[:, 0]).max() > 65_536
+    assert_same_image(c.read(), QuadBackend(scene).render(cam, lens))
+
+
+def test_depth_slices_give_the_same_image():
+    """A frame whose pairs exceed max_pairs is drawn in depth slices, continuing the blend."""
+    scene = random_scene(seed=8)
+    lens = Lens(4.0, 60.0)
+    whole = ComputeBackend(scene).render(CAM, lens)
+    sliced = ComputeBackend(scene, max_pairs=1000)
+    frame = sliced.render(CAM, lens)
+    assert sliced.slices > 3
+    assert_same_image(frame, whole, min_db=80.0)
+
+
+def test_refusals_are_clear_errors(monkeypatch):
+    scene = _one([0, 0, 1.0], [3.0, 3.0, 0.1])
+    with pytest.raises(DofviewError, match="covers more than 10 tiles"):
+        ComputeBackend(scene, max_pairs=10).render(_pixel_camera(), Lens(1.0, 0.0))
+    monkeypatch.setattr(compute_mod, "max_buffer_bytes", lambda ctx: 1000)
+    with pytest.raises(DofviewError, match="splat buffer"):
+        ComputeBackend(random_scene(n=100))
+
+
+def test_gl_without_compute_shaders_is_unavailable_and_auto_falls_back(monkeypatch):
+    class OldGL:
+        version_code = 410
+
+    with pytest.raises(BackendUnavailable, match="OpenGL 4.3"):
+        require_compute(OldGL())
+
+    def unavailable(ctx):
+        raise BackendUnavailable("no compute shaders")
+
+    monkeypatch.setattr(compute_mod, "require_compute", unavailable)
+    monkeypatch.setattr("dofview.rendering.AUTO_ORDER", ("compute", "quad"))
+    scene = random_scene(n=50)
+    with pytest.raises(BackendUnavailable):
+        get_backend("compute", scene)
+    assert get_backend("auto", scene).name == "quad"
+    assert AUTO_ORDER[0] == "quad"  # the order measured here (docs/BENCHMARKS.md "Compute backend")
+
+
+def test_render_cli_with_compute(tmp_path):
+    common = [str(SAMPLES / "cards.ply"), "--cameras", str(SAMPLES / "cards_cameras.json"), "--view", "1",
+              "--width", "160", "--height", "120", "--focus", "4", "--aperture", "60"]
+    out = {}
+    for raster in ("quad", "compute"):
+        exr = tmp_path / f"{raster}.exr"
+        assert main(["render", *common, "--raster", raster, "-o", str(exr), "--png", str(tmp_path / f"{raster}.png")]) == 0
+        out[raster] = read_exr(exr)[0]
+    rgb = {k: np.stack([v[c] for c in "RGBA"], -1) for k, v in out.items()}
+    assert psnr(rgb["compute"], rgb["quad"], 1.0) >= 45.0
+    covered = rgb["quad"][..., 3] > 0.5
+    np.testing.assert_allclose(out["compute"]["Z"][covered], out["quad"]["Z"][covered], rtol=1e-3)
