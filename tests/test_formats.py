@@ -432,7 +432,10 @@ def test_sog_version_1_layout(tmp_path):
     (tmp_path / "meta.json").write_text(json.dumps(meta))
     back = read_sog(tmp_path)
     assert back.count == n and back.sh_degree == 1
-    half8 = lambda lo, hi: 0.5 * (hi - lo) / 255 + 1e-6
+
+    def half8(lo, hi):
+        return 0.5 * (hi - lo) / 255 + 1e-6
+
     assert np.all(np.abs(np.log(back.scales) - np.log(scene.scales)) <= half8(slo, shi) + 1e-5)
     assert np.all(np.abs(back.sh_dc - scene.sh_dc) <= half8(clo[:3], chi[:3]) + 1e-5)
     assert np.abs(back.sh_rest - scene.sh_rest).max() <= half8(rest.min(), rest.max()) + 1e-5
@@ -441,3 +444,47 @@ def test_sog_version_1_layout(tmp_path):
     lo_op = 1 / (1 + np.exp(-(logit - half8(clo[3], chi[3]))))
     hi_op = 1 / (1 + np.exp(-(logit + half8(clo[3], chi[3]))))
     assert np.all((back.opacities >= lo_op - 1e-5) & (back.opacities <= hi_op + 1e-5))
+
+
+def _spz_v4(header_fields: dict, blocks: list[bytes], extensions: bytes = b"") -> bytes:
+    """A version-4 .spz assembled from raw attribute blocks (tests of layouts dofview does not write)."""
+    import zstandard
+
+    f = {"version": 4, "flags": 0x2 if extensions else 0, "frac": 12, **header_fields}
+    packed = [zstandard.ZstdCompressor().compress(b) for b in blocks]
+    head = struct.pack("<IIIBBBBI12x", 0x5053474E, f["version"], f["n"], f["degree"], f["frac"], f["flags"],
+                       len(blocks), 32 + len(extensions))
+    toc = b"".join(struct.pack("<QQ", len(c), len(b)) for c, b in zip(packed, blocks))
+    return head + extensions + toc + b"".join(packed)
+
+
+def test_spz_extension_records_and_degree_4(tmp_path):
+    """A coordinate-system record (0xADBE0003) says how the data is stored and is followed;
+    unknown records are skipped; a rotated system is refused; SH degree 4 keeps degrees 1–3."""
+    scene = random_scene(n=50, degree=3, seed=8)
+    data = tmp_path / "s.spz"
+    write_spz(scene, data, spz_axes="rdf")
+    n, blocks = scene.count, _spz_blocks(data)
+
+    def record(kind: int, payload: bytes) -> bytes:
+        return struct.pack("<II", kind, len(payload)) + payload
+
+    unknown = record(0x12340001, b"\x00" * 7)
+    as_rdf = tmp_path / "rdf.spz"
+    as_rdf.write_bytes(_spz_v4({"n": n, "degree": 3}, blocks, unknown + record(0xADBE0003, struct.pack("<I", 6))))
+    lines = []
+    a = read_spz(as_rdf, report=lines.append)
+    assert "read as RDF (the file's coordinate-system record), taken as stored" in lines[0]
+    np.testing.assert_array_equal(a.means, read_spz(data, spz_axes="rdf").means)
+    rotated = tmp_path / "rotated.spz"
+    rotated.write_bytes(_spz_v4({"n": n, "degree": 3}, blocks, record(0xADBE0003, struct.pack("<I", 10))))
+    with pytest.raises(SceneFormatError, match="rotated axes RFD"):
+        read_spz(rotated)
+    sh4 = np.frombuffer(blocks[5], np.uint8).reshape(n, 15, 3)
+    extra = np.full((n, 9, 3), 200, np.uint8)
+    four = tmp_path / "four.spz"
+    four.write_bytes(_spz_v4({"n": n, "degree": 4}, blocks[:5] + [np.concatenate([sh4, extra], 1).tobytes()]))
+    with pytest.warns(DofviewWarning, match="degree 4"):
+        b = read_spz(four, spz_axes="rdf")
+    assert b.sh_degree == 3
+    np.testing.assert_array_equal(b.sh_rest, a.sh_rest)

@@ -69,12 +69,13 @@ def cases(size: tuple[int, int], sizes: tuple[int, ...], samples: bool, real: tu
 
 
 def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, apertures: tuple[float, ...],
-            frames: int, backends: tuple[str, ...] = ("quad", "compute")) -> list[dict]:
-    """Rows for one scene: every backend at every aperture, frames interleaved across backends."""
+            frames: int, backends: tuple[str, ...] = ("quad", "compute"), compute: dict | None = None) -> list[dict]:
+    """Rows for one scene: every backend at every aperture, frames interleaved across backends.
+    ``compute``: keyword arguments for the compute backend (tile, pix)."""
     from dofview.rendering import get_backend
     from dofview.tonemap import Tonemap
 
-    renderers = [get_backend(name, scene) for name in backends]
+    renderers = [get_backend(name, scene, **(compute or {} if name == "compute" else {})) for name in backends]
     ctx = renderers[0].ctx
     viewport = (0, 0, camera.width, camera.height)
     rows = []
@@ -100,7 +101,8 @@ def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, aper
                              "backend": r.name, "aperture": a, "median_ms": med,
                              "p90_ms": float(np.percentile(t, 90)), "p99_ms": float(np.percentile(t, 99)),
                              "fps": 1e3 / med, "gpu_bytes": r.gpu_bytes, "bytes_per_gaussian": r.bytes_per_gaussian,
-                             "pairs": getattr(r, "pairs", None), "frames": frames})
+                             "pairs": getattr(r, "pairs", None), "tile": getattr(r, "tile", None),
+                             "pix": getattr(r, "pix", None), "frames": frames})
     base = {row["aperture"]: row["median_ms"] for row in rows if row["backend"] == backends[0]}
     for row in rows:
         row["ratio"] = row["median_ms"] / base[row["aperture"]]
@@ -148,6 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--height", type=int, default=SIZE[1])
     ap.add_argument("--no-samples", action="store_true", help="skip the bundled samples")
     ap.add_argument("--real", type=Path, action="append", default=[], help="a real scene file (repeatable)")
+    ap.add_argument("--compute-tile", help="TILE,PIX for the compute backend (default: its choice for this GL)")
     ap.add_argument("--json", type=Path, help="write the results here")
     ap.add_argument("--plot", type=Path, help="write the ratio plot (PNG) here")
     args = ap.parse_args(argv)
@@ -157,11 +160,12 @@ def main(argv: list[str] | None = None) -> int:
     size = (args.width, args.height)
     sizes = tuple(int(s) for s in args.sizes.split(",") if s.strip())
     apertures = tuple(float(a) for a in args.apertures.split(","))
+    compute = dict(zip(("tile", "pix"), map(int, args.compute_tile.split(",")))) if args.compute_tile else None
     result = {"gl_renderer": ctx.info["GL_RENDERER"], "gl_version": ctx.info["GL_VERSION"], "size": list(size),
               "orbit_step_deg": ORBIT_STEP_DEG, "command": "python -m dofview.bench.backends " + " ".join(
                   sys.argv[1:] if argv is None else argv), "rows": []}
     for label, scene, cam, focus in cases(size, sizes, not args.no_samples, tuple(args.real)):
-        result["rows"] += measure(label, scene, cam, focus, apertures, args.frames)
+        result["rows"] += measure(label, scene, cam, focus, apertures, args.frames, compute=compute)
         del scene
     text = json.dumps(result, indent=1)
     print(text)

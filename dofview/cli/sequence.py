@@ -60,7 +60,7 @@ def range_value(text: str) -> tuple[int, int]:
 
 
 def add_sequence_args(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("sequence (output names number their frames: -o out/f_%%04d.exr --png out/f_%%04d.png)")
+    g = p.add_argument_group("sequence (output names number their frames: -o out/f_%04d.exr --png out/f_%04d.png)")
     g.add_argument("--frames", type=number(1, None, integer=True, what="frame count"),
                    help="frames of the sequence: a focus pull (--focus A:B, even in 1/z) and/or a camera path "
                         "(--views)")

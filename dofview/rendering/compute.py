@@ -29,9 +29,10 @@ TILE_LLVMPIPE = 8
 backend"): fewer wasted evaluations of ~1-pixel splats over a tile's pixels, which dominate a CPU."""
 TILE_GPU = 16
 PIX = 2  # pixels per thread along each axis in the blend
-LLVMPIPE_RUN = 60_000 // (PIX * PIX + 1)
-"""Most splats one blend pass takes from a tile on llvmpipe, which ends an invocation's loops after
-65535 iterations in all; a longer tile is blended in passes."""
+LLVMPIPE_RUN = 60_000
+"""Loop iterations one blend pass may take on llvmpipe, which ends an invocation's loops after
+65535 iterations in all (a pass takes LLVMPIPE_RUN / (PIX² + 1) splats of a tile; a longer tile
+is blended in passes)."""
 SPLAT_BYTES = 48  # glsl/splat_record.glsl: Splat
 PER_GAUSSIAN_BYTES = SPLAT_BYTES + 8 + 4 + 4 + 4  # splat, tile rectangle, depth key, order, tile count
 """GPU bytes per Gaussian that this backend adds to the scene's buffers (besides the pair buffers)."""
@@ -49,7 +50,7 @@ class ComputeBackend(Renderer):
     gpu_sort = True
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True,
-                 max_pairs: int | None = None, tile: int | None = None) -> None:
+                 max_pairs: int | None = None, tile: int | None = None, pix: int = PIX) -> None:
         super().__init__(scene, ctx, packed)
         require_compute(self.ctx)
         self.limit = max_buffer_bytes(self.ctx)
@@ -61,7 +62,11 @@ class ComputeBackend(Renderer):
         """Most (tile, Gaussian) pairs one pass holds; a frame with more is drawn in depth slices."""
         self.tile = tile or (TILE_LLVMPIPE if "llvmpipe" in self.ctx.info["GL_RENDERER"] else TILE_GPU)
         """Tile side in pixels (a workgroup of tile × tile threads blends one tile)."""
-        self.max_run = LLVMPIPE_RUN if "llvmpipe" in self.ctx.info["GL_RENDERER"] else None
+        if tile is not None and (tile % pix or tile < pix):
+            raise DofviewError(f"tile side {tile} must be a multiple of the pixels per thread {pix}")
+        self.pix = pix
+        """Pixels per blend thread along each axis (a thread blends pix × pix pixels)."""
+        self.max_run = LLVMPIPE_RUN // (pix * pix + 1) if "llvmpipe" in self.ctx.info["GL_RENDERER"] else None
         """Most splats of one tile a blend pass takes (None: all)."""
         self.sorter = GpuRadixSort(self.ctx)
         defs = self.shader_defines
@@ -71,7 +76,7 @@ class ComputeBackend(Renderer):
         self._dup = _program(self.ctx, "tiles_duplicate.comp")
         self._ranges_prog = _program(self.ctx, "tiles_ranges.comp")
         self._longest_prog = _program(self.ctx, "tiles_longest.comp")
-        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // PIX}u", "PIX": f"{PIX}u"})
+        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // pix}u", "PIX": f"{pix}u"})
         self._depth_keys = self.ctx.buffer(reserve=4 * n)
         self._order = self.ctx.buffer(reserve=4 * n)
         self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)

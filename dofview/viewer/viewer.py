@@ -453,7 +453,7 @@ class Viewer:
                         "stats": json.loads(self.smoother.state.to_json()) if self.smoother.state is not None
                         and tm.operator.adaptive else None, "locked": self.settings.stats_lock},
             "render": {"tau": rs.tau, "k": rs.k, "opacity_norm": rs.opacity_norm, "blend_linear": rs.blend_linear,
-                       "near": rs.near},
+                       "near": rs.near, "cut": rs.cut},
             "colour_space": self.settings.colour_space, "focus_aid": self.settings.focus_aid,
             "focus_pull_target": self.pull.target, "pivot": self.controls.pivot.tolist(),
             "show_help": self.show_help, "fly_mode": self.fly_mode, "up": self.up.tolist(), "up_label": self.up_label,

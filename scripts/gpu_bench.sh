@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Issue 12's GPU measurements in one prepared run, for a session lent an NVIDIA GPU (the figures on
+# llvmpipe are in docs/BENCHMARKS.md "Compute backend"; the GPU table there stays open until this
+# has run). Measures, at 1200×675, 1M and 3M random Gaussians (bench.synth.random_scene, SH 0),
+# A ∈ {0, 50, 100}: whole frames during an orbit (every frame sorts: the quad backend on the CPU
+# plus an upload, the compute backend on the GPU) → median / p90 / p99 ms and FPS per backend, the
+# renderer's GPU bytes, and the peak GPU memory seen by nvidia-smi; then the compute backend's
+# tile / pixels-per-thread variants at 1M. Everything goes to $OUT (default ./gpu_bench_out) as
+# JSON, PNG and logs. Run from the repository root: OUT=/some/dir scripts/gpu_bench.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-gpu_bench_out}
+mkdir -p "$OUT"
+if [ -f .venv/bin/activate ]; then . .venv/bin/activate; fi
+export PYTHONUNBUFFERED=1
+
+nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$OUT/gpu.csv" 2>&1 || true
+python -c "from dofview.rendering.gl import headless_context as h; c = h(); print(c.info['GL_RENDERER']); print(c.info['GL_VERSION'])" \
+  > "$OUT/gl.txt" 2>&1
+
+# Peak GPU memory: nvidia-smi sampled every 100 ms while the benchmarks run.
+(while true; do nvidia-smi --query-gpu=memory.used --format=csv,noheader,nounits 2>/dev/null || true; sleep 0.1; done) \
+  > "$OUT/memory_used_mib.txt" &
+MONITOR=$!
+trap 'kill $MONITOR 2>/dev/null || true' EXIT
+
+python -m dofview.bench.backends --sizes 1000000,3000000 --apertures 0,50,100 --frames 30 --width 1200 --height 675 \
+  --no-samples --json "$OUT/backends.json" --plot "$OUT/backends.png" > "$OUT/backends.log" 2>&1
+
+for variant in 16,1 16,2 8,1 32,2; do
+  python -m dofview.bench.backends --sizes 1000000 --apertures 0,100 --frames 20 --width 1200 --height 675 \
+    --no-samples --compute-tile "$variant" --json "$OUT/compute_tile_${variant/,/x}.json" \
+    > "$OUT/compute_tile_${variant/,/x}.log" 2>&1 || echo "variant $variant failed (see its log)" >> "$OUT/errors.txt"
+done
+
+kill $MONITOR 2>/dev/null || true
+python - "$OUT" <<'PY'
+import json, sys
+from pathlib import Path
+out = Path(sys.argv[1])
+used = [int(x) for x in (out / "memory_used_mib.txt").read_text().split() if x.isdigit()]
+summary = {"peak_gpu_memory_used_mib": max(used) if used else None, "gl": (out / "gl.txt").read_text().split("\n")[:2],
+           "rows": []}
+for f in sorted(out.glob("*.json")):
+    if f.name == "summary.json":
+        continue
+    for r in json.loads(f.read_text())["rows"]:
+        summary["rows"].append({"file": f.name, **{k: r[k] for k in ("scene", "backend", "aperture", "median_ms", "p90_ms",
+                                                                   "p99_ms", "fps", "ratio", "gpu_bytes", "pairs")}})
+(out / "summary.json").write_text(json.dumps(summary, indent=1))
+for r in summary["rows"]:
+    print(f"{r['file']:28s} {r['scene']:12s} {r['backend']:8s} A={r['aperture']:5g} {r['median_ms']:8.2f} ms "
+          f"p99 {r['p99_ms']:8.2f} ms {r['fps']:7.1f} FPS ×{r['ratio']:.2f}")
+print("peak GPU memory used (MiB):", summary["peak_gpu_memory_used_mib"])
+PY
