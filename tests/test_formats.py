@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import random_scene
+from inria_folder import SCENES as SHARED
 
 import dofview
 from dofview.bench.formats import (
@@ -45,7 +46,6 @@ from dofview.io.spz import (
 from dofview.scene import SH_C0, GaussianScene
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = Path("/work/shared/scenes")
 SAMPLES = ROOT / "samples"
 SPZ_COLOUR_TOP = 127.5 / (0.15 * 255)  # the largest DC term an .spz colour byte holds
 

@@ -7,12 +7,11 @@ import os
 from pathlib import Path
 
 from conftest import random_scene
+from inria_folder import SCENES as SHARED
 from test_viewer import display, run_viewer  # noqa: F401  (display is a fixture)
 
 from dofview.bench.formats import convert, splat_transform
 from dofview.io.ply import write_ply
-
-SHARED = "/work/shared/scenes"
 
 
 def test_viewer_opens_each_format(display, tmp_path):  # noqa: F811

@@ -75,7 +75,7 @@ def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, aper
     from dofview.rendering import get_backend
     from dofview.tonemap import Tonemap
 
-    renderers = [get_backend(name, scene, **(compute or {} if name == "compute" else {})) for name in backends]
+    renderers = [get_backend(name, scene, **((compute or {}) if name == "compute" else {})) for name in backends]
     ctx = renderers[0].ctx
     viewport = (0, 0, camera.width, camera.height)
     rows = []
