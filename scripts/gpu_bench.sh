@@ -10,6 +10,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-gpu_bench_out}
+SIZES=${SIZES:-1000000,3000000}   # overridable for a dry run on a small machine
+FRAMES=${FRAMES:-30}
 mkdir -p "$OUT"
 if [ -f .venv/bin/activate ]; then . .venv/bin/activate; fi
 export PYTHONUNBUFFERED=1
@@ -24,11 +26,11 @@ python -c "from dofview.rendering.gl import headless_context as h; c = h(); prin
 MONITOR=$!
 trap 'kill $MONITOR 2>/dev/null || true' EXIT
 
-python -m dofview.bench.backends --sizes 1000000,3000000 --apertures 0,50,100 --frames 30 --width 1200 --height 675 \
+python -m dofview.bench.backends --sizes "$SIZES" --apertures 0,50,100 --frames "$FRAMES" --width 1200 --height 675 \
   --no-samples --json "$OUT/backends.json" --plot "$OUT/backends.png" > "$OUT/backends.log" 2>&1
 
 for variant in 16,1 16,2 8,1 32,2; do
-  python -m dofview.bench.backends --sizes 1000000 --apertures 0,100 --frames 20 --width 1200 --height 675 \
+  python -m dofview.bench.backends --sizes "${SIZES%%,*}" --apertures 0,100 --frames "$FRAMES" --width 1200 --height 675 \
     --no-samples --compute-tile "$variant" --json "$OUT/compute_tile_${variant/,/x}.json" \
     > "$OUT/compute_tile_${variant/,/x}.log" 2>&1 || echo "variant $variant failed (see its log)" >> "$OUT/errors.txt"
 done

@@ -137,6 +137,20 @@ def test_splat_larger_than_the_screen():
     assert_same_image(frame, QuadBackend(scene, packed=False).render(cam, lens), min_db=60.0)
 
 
+def test_loop_limit_passes_give_the_same_image(monkeypatch):
+    """Where the GL limits loop iterations (llvmpipe), duplication and blending run in passes; with
+    the limit cut to 40 iterations a full-screen splat and a 1500-splat scene take many of them."""
+    scene = random_scene(seed=3)
+    scene.scales[0] = [3.0, 3.0, 0.1]  # covers every tile
+    lens = Lens(4.0, 40.0)
+    whole = ComputeBackend(scene).render(CAM, lens)
+    monkeypatch.setattr(compute_mod, "LLVMPIPE_RUN", 40)
+    limited = ComputeBackend(scene)
+    if limited.loop_limit is None:
+        pytest.skip("this GL has no loop limit, so there are no passes to test")
+    assert_same_image(limited.render(CAM, lens), whole, min_db=80.0)
+
+
 def test_more_than_65k_splats_in_one_tile():
     """70 000 tiny splats inside one tile at distinct depths: no counter overflows, the tile
     blends them all (front to back, with early termination) as the quad path does."""

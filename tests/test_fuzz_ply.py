@@ -14,7 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dofview.errors import DofviewError, DofviewWarning
-from dofview.io.ply import PLY_TYPES, REQUIRED, read_ply, scene_rows
+from dofview.io.ply import REQUIRED, read_ply, scene_rows
+from dofview.io.ply_header import PLY_TYPES
 
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

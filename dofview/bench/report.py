@@ -116,7 +116,8 @@ def report_lines(result: dict, command: str, seconds: float) -> list[str]:
              f"Command: `{command}` ({seconds:.0f} s).", "",
              f"Scene: {scene.count} Gaussians, colour space {scene.colour_space}, SH degree {scene.sh_degree}. "
              f"Image {t0['width']}×{t0['height']}; views {sorted({r['camera'] or r['view'] for r in timing}, key=str)}; "
-             f"focus {sorted({r['focus'] for r in timing})}. OpenGL: {result['gl_renderer']}.",
+             f"focus {sorted({r['focus'] for r in timing})}. OpenGL: {result['gl_renderer']}, "
+             f"{result.get('backend', 'quad')} backend.",
              "",
              f"Base settings: τ = {_tau_name(base.tau)}, k = {_k_name(base.k)}, opacity {base.opacity_norm}. "
              f"Times: median of {cfg.frames} interleaved frames after {cfg.warmup} warm-up round(s), wall time to "

@@ -215,7 +215,7 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
         if scaling:
             scaling_rows = _scaling(renderer, scene, cameras[0], focuses[0][0], cfg, base, timer, tick, log)
     return {"timing": timing_rows, "error": error_rows, "scaling": scaling_rows,
-            "gl_renderer": renderer.ctx.info.get("GL_RENDERER", "?"),
+            "gl_renderer": renderer.ctx.info.get("GL_RENDERER", "?"), "backend": renderer.name,
             "timer_query_ok": timer_query_covers_raster(renderer.ctx), "base": base, "config": cfg,
             "scene": scene, "hdr": hdr, "encoded": encoded}
 

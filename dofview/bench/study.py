@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+
 import numpy as np
 
 from dofview.bench.runner import time_round_robin
@@ -99,13 +100,14 @@ def study_variants() -> dict[str, RenderSettings]:
 
 
 def run_study(scene: GaussianScene, cases: list[Case], variants: dict[str, RenderSettings], ref_samples: int,
-              acc_samples=(1, 2, 4, 8, 16, 32, 64), frames: int = 3, tm: Tonemap = Tonemap()) -> list[dict]:
+              acc_samples=(1, 2, 4, 8, 16, 32, 64), frames: int = 3, tm: Tonemap | None = None) -> list[dict]:
     """Rows of (case, method, samples, psnr, ssim, time_ratio) for every variant and every count of
     the progressive accumulation (the viewer's, rendering/progressive.py: its R2 lens points, not
     the reference's spiral, so even at ``ref_samples`` it is a separate estimate). ``time_ratio``
     is the median frame time over that of the pinhole frame at the default τ on the same camera,
     all timed round-robin; accumulation counts n pinhole frames (τ = 0). The variant named
     "pinhole" is drawn at aperture 0."""
+    tm = tm or Tonemap()
     renderer = QuadBackend(scene)
     timer = FrameTimer(renderer.ctx)
     hdr = scene.colour_space == "linear"
@@ -180,7 +182,7 @@ def plot_study(path, name: str, summary: dict[str, dict[str, float]], ref_sample
         ax.annotate(m.split()[1], (t, p), textcoords="offset points", xytext=(3, -10), fontsize=7)
     single = [(v["time_ratio"], v["psnr"], m) for m, v in summary.items() if not m.startswith("accumulation")]
     for (t, p, m), mk in zip(single, "sv^D<>ph*"):
-        style = dict(ms=13, mfc="none", mew=2, color="red") if m == "default" else dict(ms=7)
+        style = {"ms": 13, "mfc": "none", "mew": 2, "color": "red"} if m == "default" else {"ms": 7}
         ax.plot([t], [p], mk if m != "default" else "o", label=m, **style)
     front = pareto([(t, p) for t, p, _ in acc + single])
     ax.step([f[0] for f in front], [f[1] for f in front], where="post", color="grey", alpha=0.6, lw=3, zorder=0,
@@ -254,9 +256,10 @@ def run_cli(args) -> int:
     argv = sys.argv[1:]
     command = "dofview " + " ".join(argv[argv.index("bench"):] if "bench" in argv else argv)
     lines = [f"# Depth of field against the physical thin lens: {name}", "",
-             f"`{command}` ({_time.perf_counter() - t0:.0f} s); {w}×{h} px, {args.views} views × focus at depth "
-             f"percentiles {', '.join(f'{p:g}' for p in args.focus_pct)} × CoC {', '.join(f'{c:g}' for c in args.coc_px)} px; "
-             f"truth: {ref} lens samples, linear light; renderer {QuadBackend.name}.", ""]
+             (f"`{command}` ({_time.perf_counter() - t0:.0f} s); {w}×{h} px, {args.views} views × focus at depth "
+              f"percentiles {', '.join(f'{p:g}' for p in args.focus_pct)} × CoC "
+              f"{', '.join(f'{c:g}' for c in args.coc_px)} px; truth: {ref} lens samples, linear light; "
+              f"renderer {QuadBackend.name}, llvmpipe timings as ratios."), ""]
     fixed = fixed_aperture_ratio(scene, cases)
     lines += table_lines(name, summary, scene.count, len(cases))
     lines.append(f"A = 100 (px·unit): frame time / pinhole at the default τ: default {fixed['default']:.2f}×, "

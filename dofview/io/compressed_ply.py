@@ -24,6 +24,7 @@ import numpy as np
 
 from dofview.errors import DofviewError, SceneFormatError
 from dofview.io._packed import quats_from_smallest_three, scene_from_arrays, unorm
+from dofview.io.ply_header import read_header
 from dofview.scene import SH_C0, GaussianScene
 
 CHUNK = 256
@@ -82,8 +83,6 @@ def read_compressed_ply(path: str | Path, progress: Callable[[int, int], None] |
     Raises:
         SceneFormatError: not a compressed PLY, cut short, or with an unexpected layout.
     """
-    from dofview.io.ply import read_header
-
     path = Path(path)
     try:
         size, fmt, elements, _, header_len = read_header(path)

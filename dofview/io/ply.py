@@ -20,85 +20,18 @@ from typing import Callable
 import numpy as np
 
 from dofview.errors import DofviewError, DofviewWarning
-from dofview.io._common import input_size
+from dofview.io.ply_header import Element, read_header
 from dofview.scene import COLOUR_SPACES, GaussianScene
 
-PLY_TYPES = {
-    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
-    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
-}
 REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
             "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
 REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}  # f_rest values → SH degree
-MAX_HEADER = 1 << 20
 _COLOUR_COMMENT = re.compile(r"^dofview colour_space (\w+)$")
 _DROP_PAGES = hasattr(mmap, "MADV_DONTNEED")  # POSIX; Windows' mmap has no madvise
 CHUNK = 1 << 18  # Gaussians activated per step (bounds temporaries, drives the progress bar)
 
 
-class _Element:
-    def __init__(self, name: str, count: int) -> None:
-        self.name, self.count = name, count
-        self.props: list[tuple[str, str | None]] = []  # (name, numpy type or None for a list)
-        self.min_binary_row = 0  # bytes: scalars plus list counts (lists may be empty)
-
-    def min_body_bytes(self, fmt: str) -> int:
-        """The fewest body bytes ``count`` rows can take: an ASCII value needs a digit and a separator."""
-        return self.count * max(2 * len(self.props) if fmt == "ascii" else self.min_binary_row, 1)
-
-
-def _parse_header(path: Path, head: bytes) -> tuple[str, list[_Element], list[str], int]:
-    """(format, elements, comments, header length in bytes) from the start of a file."""
-    if not head.startswith(b"ply"):
-        raise DofviewError(f"{path}: not a PLY file (it does not start with 'ply')")
-    end = head.find(b"end_header")
-    if end < 0:
-        raise DofviewError(f"{path}: PLY header has no 'end_header' line (file cut short or not a PLY)")
-    nl = head.find(b"\n", end)
-    if nl < 0:
-        raise DofviewError(f"{path}: PLY header has no line break after 'end_header' (file cut short)")
-    try:
-        text = head[:end].decode("ascii")
-    except UnicodeDecodeError:
-        raise DofviewError(f"{path}: PLY header holds non-ASCII bytes") from None
-    fmt, elements, comments = None, [], []
-    for lineno, line in enumerate(text.replace("\r", "").split("\n")[1:], start=2):
-        words = line.split()
-        if not words:
-            continue
-        kw = words[0]
-        if kw == "format":
-            if len(words) < 2 or words[1] not in ("ascii", "binary_little_endian", "binary_big_endian"):
-                raise DofviewError(f"{path}: unknown PLY format in header line {lineno}: {line.strip()!r}")
-            fmt = words[1]
-        elif kw in ("comment", "obj_info"):
-            comments.append(line.split(None, 1)[1].strip() if len(words) > 1 else "")
-        elif kw == "element":
-            if len(words) != 3 or not words[2].isdigit():
-                raise DofviewError(f"{path}: bad element line {lineno} in PLY header: {line.strip()!r}")
-            elements.append(_Element(words[1], int(words[2])))
-        elif kw == "property":
-            if not elements:
-                raise DofviewError(f"{path}: property before any element in PLY header line {lineno}")
-            if words[-1] in (name for name, _ in elements[-1].props):
-                raise DofviewError(f"{path}: property {words[-1]!r} appears twice in PLY header line {lineno}")
-            if len(words) == 3 and words[1] in PLY_TYPES:
-                elements[-1].props.append((words[2], PLY_TYPES[words[1]]))
-                elements[-1].min_binary_row += np.dtype(PLY_TYPES[words[1]]).itemsize
-            elif len(words) == 5 and words[1] == "list" and words[2] in PLY_TYPES and words[3] in PLY_TYPES:
-                elements[-1].props.append((words[4], None))
-                elements[-1].min_binary_row += np.dtype(PLY_TYPES[words[2]]).itemsize
-            else:
-                raise DofviewError(f"{path}: bad property line {lineno} in PLY header: {line.strip()!r}")
-        else:
-            raise DofviewError(f"{path}: unexpected PLY header line {lineno}: {line.strip()!r}")
-    if fmt is None:
-        raise DofviewError(f"{path}: PLY header has no 'format' line")
-    return fmt, elements, comments, nl + 1
-
-
-def _check_vertex(path: Path, elements: list[_Element]) -> _Element:
+def _check_vertex(path: Path, elements: list[Element]) -> Element:
     vertex = next((e for e in elements if e.name == "vertex"), None)
     if vertex is None:
         raise DofviewError(f"{path}: PLY file has no 'vertex' element, so no Gaussians")
@@ -120,7 +53,7 @@ def _check_vertex(path: Path, elements: list[_Element]) -> _Element:
     return vertex
 
 
-def _check_body_size(path: Path, fmt: str, elements: list[_Element], vertex: _Element, body: int) -> None:
+def _check_body_size(path: Path, fmt: str, elements: list[Element], vertex: Element, body: int) -> None:
     """Refuse a body too short for the header's counts before anything is allocated (exact for
     binary files without lists, a lower bound otherwise)."""
     need = sum(e.min_body_bytes(fmt) for e in elements) - (fmt == "ascii")  # last newline optional
@@ -130,7 +63,7 @@ def _check_body_size(path: Path, fmt: str, elements: list[_Element], vertex: _El
             f"(at least {need} bytes) but only {body} bytes follow it")
 
 
-def _binary_columns(path: Path, fmt: str, elements: list[_Element], vertex: _Element,
+def _binary_columns(path: Path, fmt: str, elements: list[Element], vertex: Element,
                     header_len: int) -> np.ndarray | None:
     """The vertex rows as a read-only structured memmap, or None when the layout needs plyfile."""
     order = "<" if fmt == "binary_little_endian" else ">"
@@ -155,21 +88,6 @@ def _plyfile_rows(path: Path) -> np.ndarray:
         return data["vertex"].data
     except (plyfile.PlyParseError, ValueError, IndexError, KeyError, EOFError) as e:
         raise DofviewError(f"{path}: cannot parse PLY body ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
-
-
-def read_header(path: Path) -> tuple[int, str, list[_Element], list[str], int]:
-    """(file size, format, elements, comments, header length in bytes) of a PLY file.
-
-    Raises:
-        DofviewError: the file is missing, unreadable, or its header is not a PLY header.
-    """
-    size = input_size(path)
-    try:
-        with open(path, "rb") as f:
-            head = f.read(MAX_HEADER)
-    except OSError as e:
-        raise DofviewError(f"{path}: cannot read ({e.strerror or e})") from None
-    return (size, *_parse_header(path, head))
 
 
 def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = None) -> GaussianScene:

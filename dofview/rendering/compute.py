@@ -2,12 +2,14 @@
 
 Per frame, all on the GPU: (the depth sort, only when the view moved: depth keys of all Gaussians
 and a radix sort, gpusort.py) → preprocess, one thread per Gaussian (project.glsl, the quad path's
-projection, CoC and opacity normalisation; the support box → a rectangle of tiles, 16×16 pixels on a GPU, 8×8 on llvmpipe) → count
+projection, CoC and opacity normalisation; the support box → a rectangle of tiles) → count
 and scan the tiles each Gaussian touches, in depth order → duplicate one (tile, Gaussian) pair per
 touched tile → stable radix sort by tile (the depth order survives within each tile) → each tile's
 range → blend each tile front to back in one workgroup (lens.glsl's alpha, float32, early stop at
 T < 1e-4) straight into the Renderer's colour/depth targets. Only the pair count comes back to the
-CPU (4 bytes), to size the pair buffers.
+CPU (a 4-byte total per 256 Gaussians), to size the pair buffers (on llvmpipe also the longest tile's length, see
+:data:`LLVMPIPE_RUN`). A frame whose pairs exceed the storage-buffer limit is drawn in depth slices,
+each continuing the blend of the nearer ones.
 """
 
 from __future__ import annotations
@@ -24,22 +26,31 @@ from dofview.rendering.gpusort import GpuRadixSort, _program, groups, max_buffer
 from dofview.rendering.uniforms import set_projection_uniforms
 from dofview.scene import GaussianScene
 
-TILE_LLVMPIPE = 8
-"""Tile side on Mesa llvmpipe: 1.6–1.9× faster frames than 16 there (docs/BENCHMARKS.md, "Compute
-backend"): fewer wasted evaluations of ~1-pixel splats over a tile's pixels, which dominate a CPU."""
-TILE_GPU = 16
-PIX = 2  # pixels per thread along each axis in the blend
+LLVMPIPE_SHAPE = (8, 2)
+"""(tile side, pixels per thread along a side) on Mesa llvmpipe: measured fastest there of 8×2, 16×2,
+16×4, 32×4 at 1M Gaussians, 1200×675 (docs/BENCHMARKS.md "Compute backend"): on a CPU the
+evaluations of ~1-pixel splats over a whole tile dominate, and a thread blending 2×2 pixels loads
+each splat once for four of them."""
+GPU_SHAPE = (16, 1)
+"""(tile side, pixels per thread) elsewhere: the tile rasterisers' usual 16×16 threads; not yet
+measured here (scripts/gpu_bench.sh times 16×1, 16×2, 8×1 and 32×2)."""
 LLVMPIPE_RUN = 60_000
 """Loop iterations one blend pass may take on llvmpipe, which ends an invocation's loops after
-65535 iterations in all (a pass takes LLVMPIPE_RUN / (PIX² + 1) splats of a tile; a longer tile
+65535 iterations in all (a pass takes LLVMPIPE_RUN / (pix² + 1) splats of a tile; a longer tile
 is blended in passes)."""
 SPLAT_BYTES = 48  # glsl/splat_record.glsl: Splat
-PER_GAUSSIAN_BYTES = SPLAT_BYTES + 8 + 4 + 4 + 4  # splat, tile rectangle, depth key, order, tile count
+PER_GAUSSIAN_BYTES = SPLAT_BYTES + 8 + 4 + 4  # splat, tile rectangle, order, tile count (= depth key)
 """GPU bytes per Gaussian that this backend adds to the scene's buffers (besides the pair buffers)."""
 
 
 class ComputeBackend(Renderer):
     """The compute tile rasteriser (see the module docstring; :class:`Renderer` for the arguments).
+
+    Args:
+        max_pairs: most (tile, Gaussian) pairs per depth slice (default and ceiling: what one
+            storage buffer holds).
+        tile, pix: tile side in pixels and pixels per thread along a side (default: by device,
+            :data:`LLVMPIPE_SHAPE` or :data:`GPU_SHAPE`).
 
     Raises:
         BackendUnavailable: the GL lacks compute shaders (OpenGL < 4.3).
@@ -50,7 +61,7 @@ class ComputeBackend(Renderer):
     gpu_sort = True
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True,
-                 max_pairs: int | None = None, tile: int | None = None, pix: int = PIX) -> None:
+                 max_pairs: int | None = None, tile: int | None = None, pix: int | None = None) -> None:
         super().__init__(scene, ctx, packed)
         require_compute(self.ctx)
         self.limit = max_buffer_bytes(self.ctx)
@@ -60,14 +71,15 @@ class ComputeBackend(Renderer):
                                f"OpenGL binds at most {self.limit / 2**20:.0f} MiB (use --raster quad)")
         self.max_pairs = min(max_pairs or self.limit // 4, self.limit // 4)
         """Most (tile, Gaussian) pairs one pass holds; a frame with more is drawn in depth slices."""
-        self.tile = tile or (TILE_LLVMPIPE if "llvmpipe" in self.ctx.info["GL_RENDERER"] else TILE_GPU)
-        """Tile side in pixels (a workgroup of tile × tile threads blends one tile)."""
-        if tile is not None and (tile % pix or tile < pix):
-            raise DofviewError(f"tile side {tile} must be a multiple of the pixels per thread {pix}")
-        self.pix = pix
-        """Pixels per blend thread along each axis (a thread blends pix × pix pixels)."""
-        self.max_run = LLVMPIPE_RUN // (pix * pix + 1) if "llvmpipe" in self.ctx.info["GL_RENDERER"] else None
-        """Most splats of one tile a blend pass takes (None: all)."""
+        llvmpipe = "llvmpipe" in self.ctx.info["GL_RENDERER"]
+        shape = LLVMPIPE_SHAPE if llvmpipe else GPU_SHAPE
+        self.tile, self.pix = tile or shape[0], pix or (shape[1] if tile is None else 1)
+        """Tile side in pixels; pixels per blend thread along a side (a workgroup of
+        (tile / pix)² threads blends one tile, each thread pix × pix pixels)."""
+        if self.tile % self.pix:
+            raise DofviewError(f"tile side {self.tile} must be a multiple of the pixels per thread {self.pix}")
+        self.loop_limit = LLVMPIPE_RUN if llvmpipe else None
+        """Most loop iterations one invocation may run (None: no limit)."""
         self.sorter = GpuRadixSort(self.ctx)
         defs = self.shader_defines
         self._keys_prog = _program(self.ctx, "sort_depth_keys.comp", defs)
@@ -76,12 +88,13 @@ class ComputeBackend(Renderer):
         self._dup = _program(self.ctx, "tiles_duplicate.comp")
         self._ranges_prog = _program(self.ctx, "tiles_ranges.comp")
         self._longest_prog = _program(self.ctx, "tiles_longest.comp")
-        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // pix}u", "PIX": f"{pix}u"})
-        self._depth_keys = self.ctx.buffer(reserve=4 * n)
+        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u"})
         self._order = self.ctx.buffer(reserve=4 * n)
         self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)
         self._rects = self.ctx.buffer(reserve=8 * n)
         self._offsets = self.ctx.buffer(reserve=4 * (n + 1))
+        self._depth_keys = self._offsets  # the sort's keys, dead once sorted: the counts reuse them
+        self._group_totals = self.ctx.buffer(reserve=4 * -(-(n + 1) // 256))
         self._counter = self.ctx.buffer(reserve=4)
         self._longest = self.ctx.buffer(reserve=4)
         self._pairs: list[moderngl.Buffer] = []  # tile keys, values, and the two sort scratch buffers
@@ -97,7 +110,7 @@ class ComputeBackend(Renderer):
     def gpu_bytes(self) -> int:
         """Bytes of GPU storage: the scene's buffers, the per-Gaussian buffers and the pair
         buffers as now allocated (they grow to the largest frame drawn)."""
-        own = (self._depth_keys, self._order, self._splats, self._rects, self._offsets, *self._pairs)
+        own = (self._order, self._splats, self._rects, self._offsets, self._group_totals, *self._pairs)
         return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes
 
     # ---- depth order ---------------------------------------------------------------------------
@@ -184,15 +197,20 @@ class ComputeBackend(Renderer):
         self.ctx.memory_barrier()
 
     def _scan_counts(self, n: int) -> int:
-        """Tiles touched per Gaussian in depth order, scanned to first-pair offsets; the total."""
-        self._order.bind_to_storage_buffer(0)
-        self._rects.bind_to_storage_buffer(1)
-        self._offsets.bind_to_storage_buffer(2)
+        """Tiles touched per Gaussian in depth order, scanned to first-pair offsets; the total
+        (added up on the CPU from the per-workgroup totals, exact: the GPU scan is uint32)."""
+        self._group_totals.clear()
+        for binding, buf in enumerate((self._order, self._rects, self._offsets, self._group_totals)):
+            buf.bind_to_storage_buffer(binding)
         self._count["u_n"].value = n
         self._count.run(*groups(-(-(n + 1) // 256)))
         self.ctx.memory_barrier()
+        total = int(np.frombuffer(self._group_totals.read(), np.uint32).sum(dtype=np.int64))
+        if total >= 2**32:
+            raise DofviewError(f"this view needs {total} (tile, Gaussian) pairs, more than the compute backend "
+                               "addresses (2^32); use --raster quad or a smaller aperture")
         self.sorter.scan.run(self._offsets, n + 1)
-        return int(np.frombuffer(self._offsets.read(size=4, offset=4 * n), np.uint32)[0])
+        return total
 
     def _slices(self, n: int, total: int) -> list[tuple[int, int, int, int]]:
         """Depth slices (first, end Gaussian in depth order, first pair, pairs) whose pairs fit
@@ -228,10 +246,14 @@ class ComputeBackend(Renderer):
             d["u_n"].value = end - first
             d["u_base"].value = base
             d["u_tiles_x"].value = tiles[0]
-            for binding, buf in enumerate((self._order, self._rects, self._offsets, keys, vals)):
-                buf.bind_to_storage_buffer(binding)
-            d.run(*groups(-(-(end - first) // 256)))
-            self.ctx.memory_barrier()
+            run = self.loop_limit if self.loop_limit is not None and tiles[0] * tiles[1] > self.loop_limit else None
+            d["u_take"].value = run or 0xFFFFFFFF
+            for skip in range(0, tiles[0] * tiles[1] if run else 1, run or 1):  # passes: see LLVMPIPE_RUN
+                d["u_skip"].value = skip
+                for binding, buf in enumerate((self._order, self._rects, self._offsets, keys, vals)):
+                    buf.bind_to_storage_buffer(binding)
+                d.run(*groups(-(-(end - first) // 256)))
+                self.ctx.memory_barrier()
             bits = max((tiles[0] * tiles[1] - 1).bit_length(), 1)
             keys, vals = self.sorter.sort(keys, vals, pairs, bits, *scratch)
         self._ranges.clear()
@@ -245,7 +267,8 @@ class ComputeBackend(Renderer):
         b["u_tau"].value = tau
         b["u_size"].value = (self.camera.width, self.camera.height)
         b["u_tiles_x"].value = tiles[0]
-        run = self.max_run if self.max_run is not None and pairs > self.max_run else None
+        take = self.loop_limit // (self.pix ** 2 + 1) if self.loop_limit is not None else None  # splats a pass
+        run = take if take is not None and pairs > take else None
         b["u_take"].value = run or 0xFFFFFFFF
         for skip in range(0, self._longest_range(tiles) if run else 1, run or 1):
             b["u_skip"].value = skip
@@ -267,8 +290,8 @@ class ComputeBackend(Renderer):
         return int(np.frombuffer(self._longest.read(), np.uint32)[0])
 
     def _release_backend(self) -> None:
-        for obj in (self._depth_keys, self._order, self._splats, self._rects, self._offsets, self._counter,
-                    self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
+        for obj in (self._order, self._splats, self._rects, self._offsets, self._group_totals,
+                    self._counter, self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
                     self._ranges_prog, self._longest_prog, self._blend):
             if obj is not None:
                 obj.release()

@@ -12,8 +12,8 @@ renderer's own targets, so read() and the display pass serve it like a single-pa
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
-from typing import Callable
 
 import moderngl
 import numpy as np

@@ -1,7 +1,9 @@
 #version 430
 // Compute rasteriser, step 3: one (tile, Gaussian) pair per touched tile, written in depth order
 // from the scanned counts; a stable sort by tile then leaves each tile's list front to back.
-// Gaussians [u_first, u_first + u_n) of the depth order; offsets are relative to u_base.
+// Gaussians [u_first, u_first + u_n) of the depth order; offsets are relative to u_base. A pass
+// writes pairs [u_skip, u_skip + u_take) of each Gaussian (llvmpipe ends an invocation's loops after
+// 65535 iterations, and a splat may cover more tiles than that on a large image).
 layout(local_size_x = 256) in;
 layout(std430, binding = 0) readonly buffer Order { uint order[]; };
 layout(std430, binding = 1) readonly buffer Rects { uvec2 rects[]; };
@@ -12,6 +14,8 @@ uniform uint u_first;
 uniform uint u_n;
 uniform uint u_base;
 uniform uint u_tiles_x;
+uniform uint u_skip;
+uniform uint u_take;
 
 #include "dispatch.glsl"
 
@@ -20,12 +24,13 @@ void main() {
     if (i >= u_n) return;
     uint g = order[u_first + i];
     uvec2 r = rects[g];
+    uint x0 = r.x & 0xffffu, y0 = r.x >> 16;
+    uint w = (r.y & 0xffffu) - x0;
+    uint count = w * ((r.y >> 16) - y0);
     uint at = offsets[u_first + i] - u_base;
-    for (uint y = r.x >> 16; y < (r.y >> 16); ++y) {
-        for (uint x = r.x & 0xffffu; x < (r.y & 0xffffu); ++x) {
-            tile_keys[at] = y * u_tiles_x + x;
-            tile_vals[at] = g;
-            ++at;
-        }
+    uint end = u_skip + min(count - min(count, u_skip), u_take);
+    for (uint k = u_skip; k < end; ++k) {
+        tile_keys[at + k] = (y0 + k / w) * u_tiles_x + x0 + k % w;
+        tile_vals[at + k] = g;
     }
 }
