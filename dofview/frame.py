@@ -30,7 +30,8 @@ class RenderSettings:
         near: near plane, camera z in scene units; Gaussians with z ≤ near are not drawn.
         cut: how τ cuts a splat (lens.cut_splat): "drop" draws o′ where α ≥ τ and culls splats below
             τ everywhere (the light of wide, faint blurred splats is lost); "conserve" draws o′ + τ
-            inside the ellipse where that falls to τ, which keeps each splat's whole mass.
+            inside the ellipse where that falls to τ, which keeps each splat's whole mass (better
+            where the lost light dominates the error, worse where blurred stacks over-cover).
     """
 
     tau: float = 1.0 / 255.0  # chosen by docs/BENCHMARKS.md "Speed against error"
@@ -38,7 +39,7 @@ class RenderSettings:
     opacity_norm: str = "energy"
     blend_linear: bool = False
     near: float = 0.01
-    cut: str = "conserve"  # chosen by docs/BENCHMARKS.md "Depth of field against the thin lens"
+    cut: str = "drop"  # "conserve" wins on one real scene of five: docs/BENCHMARKS.md, real scenes
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.tau < 1.0):

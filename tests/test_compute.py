@@ -223,3 +223,12 @@ def test_render_cli_with_compute(tmp_path):
     assert psnr(rgb["compute"], rgb["quad"], 1.0) >= 45.0
     covered = rgb["quad"][..., 3] > 0.5
     np.testing.assert_allclose(out["compute"]["Z"][covered], out["quad"]["Z"][covered], rtol=1e-3)
+
+
+@pytest.mark.parametrize("command", ["render", "view", "bench"])
+def test_raster_option_on_every_command(command, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([command, "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "--raster {auto,quad,compute}" in " ".join(out.split())

@@ -1,6 +1,7 @@
-"""The default depth-of-field kernel on a real trained scene (burger.ply, made elsewhere): against the
-physical thin lens (linear-light accumulation) it beats the anchors' formulation, and the GL renderer
-matches the CPU reference on it. The scenes live outside the repository (DOFVIEW_SCENES, default
+"""The mass-conserving τ cut on a real trained scene (burger.ply, made elsewhere): against the physical
+thin lens (linear-light accumulation) it beats the anchors' formulation there, the one real scene of
+five where it does (docs/BENCHMARKS.md, so it is an option, not the default), and the GL renderer
+matches the CPU reference on the scene with the default and with the conserving cut. The scenes live outside the repository (DOFVIEW_SCENES, default
 ../shared/scenes); without them these tests skip and say so."""
 
 from __future__ import annotations
@@ -36,9 +37,10 @@ def burger():
         return load_scene(BURGER, progress=False)
 
 
-def test_default_beats_the_anchor_kernel_against_the_thin_lens(burger):
-    """CoC up to 12 px at 120×90, truth from 64 lens samples. Measured: the default ~1 dB above
-    k = 1/4 with the anchors' α ≥ 1/255 cut (docs/BENCHMARKS.md); asserted with a 0.4 dB margin."""
+def test_conserving_cut_beats_the_anchor_kernels_on_burger(burger):
+    """CoC up to 12 px at 120×90, truth from 64 lens samples. Measured here 1.3 dB above the best of
+    k = 1/9, 1/4, 1 with the anchors' α ≥ 1/255 cut (1.35 dB in docs/BENCHMARKS.md); asserted with
+    a 0.4 dB margin."""
     r = QuadBackend(burger)
     cam = study_views(burger, 1, 120, 90)[0]
     case = study_cases(r, [cam], focus_pcts=(50.0,), cocs=(12.0,))[0]
@@ -48,21 +50,22 @@ def test_default_beats_the_anchor_kernel_against_the_thin_lens(burger):
         f = r.render(cam, case.lens, st)
         return psnr(display(f.rgba, f.encoded, Tonemap()), display(truth.rgba, truth.encoded, Tonemap()))
 
-    default = score(RenderSettings())
     anchor = RenderSettings(tau=1 / 255, k=1 / 4, opacity_norm="energy", cut="drop")
+    conserve = score(replace(anchor, cut="conserve"))
     best_anchor = max(score(replace(anchor, k=k)) for k in (1 / 9, 1 / 4, 1.0))
     r.release()
-    print(f"default {default:.2f} dB, best anchor {best_anchor:.2f} dB")
-    assert default >= best_anchor + 0.4
+    assert conserve >= best_anchor + 0.4
 
 
-def test_gl_matches_the_cpu_reference_on_a_real_scene(burger):
+@pytest.mark.parametrize("cut", ["drop", "conserve"])
+def test_gl_matches_the_cpu_reference_on_a_real_scene(burger, cut):
     """≥ 45 dB (assert_matches_reference). Hundreds of splats overlap each pixel of this small image,
     so ~17 % of pixels have one within 1e-5 of a cut: those leave the depth check only."""
     r = QuadBackend(burger, packed=False)
     cam = study_views(burger, 1, 48, 36)[0]
     case = study_cases(r, [cam], focus_pcts=(50.0,), cocs=(6.0,))[0]
-    gl = r.render(cam, case.lens, RenderSettings())
+    settings = RenderSettings(cut=cut)
+    gl = r.render(cam, case.lens, settings)
     r.release()
-    assert_matches_reference(gl, render_reference(burger, cam, case.lens, RenderSettings(), margins=True),
+    assert_matches_reference(gl, render_reference(burger, cam, case.lens, settings, margins=True),
                              max_near_cut=0.25)

@@ -24,9 +24,10 @@ BACKENDS: dict[str, str] = {
 AUTO_ORDER: tuple[str, ...] = ("quad", "compute")
 """The order ``"auto"`` tries backends in: the first that this GL can run. Quad first, as measured
 on Mesa llvmpipe (docs/BENCHMARKS.md "Compute backend", 1200×675, sort every frame): compute/quad
-frame time 1.53× and 1.35× on the cards and lamp samples and 1.31× on burger.ply at A = 0, 0.89–1.23×
-at A = 100; compute wins only at 1M Gaussians (0.77× at A = 0, 0.98× at A = 100). Not yet measured on
-a GPU (scripts/gpu_bench.sh), where the order may change."""
+frame time 1.20× / 1.37× on the cards sample and 1.03× / 1.11× on burger.ply at A = 0 / 100, but
+0.95× / 0.93× on the lamp sample and 0.77× / 0.80× at 1M Gaussians: quad wins the small scenes
+rendered here and is the reference. Not yet measured on a GPU (scripts/gpu_bench.sh), where the
+order may change."""
 
 
 def backend_class(name: str) -> type[Renderer]:

@@ -84,8 +84,9 @@ class ComputeBackend(Renderer):
         defs = self.shader_defines
         self._keys_prog = _program(self.ctx, "sort_depth_keys.comp", defs)
         self._pre = _program(self.ctx, "tiles_preprocess.comp", {**defs, "TILE": f"{self.tile}u"})
-        self._count = _program(self.ctx, "tiles_count.comp")
-        self._dup = _program(self.ctx, "tiles_duplicate.comp")
+        tile_def = {"TILE": f"{self.tile}u"}
+        self._count = _program(self.ctx, "tiles_count.comp", tile_def)
+        self._dup = _program(self.ctx, "tiles_duplicate.comp", tile_def)
         self._ranges_prog = _program(self.ctx, "tiles_ranges.comp")
         self._longest_prog = _program(self.ctx, "tiles_longest.comp")
         self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u"})
@@ -155,7 +156,7 @@ class ComputeBackend(Renderer):
     # ---- drawing -------------------------------------------------------------------------------
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
              count: bool = False, sort: bool = True) -> None:
-        """Rasterise the scene into the float targets (no read-back but the 4-byte pair count).
+        """Rasterise the scene into the float targets (no read-back but the pair totals).
         ``sort=False`` keeps the last depth order (a view change then draws with a stale order)."""
         w, h = camera.width, camera.height
         self._targets(w, h)
@@ -200,7 +201,7 @@ class ComputeBackend(Renderer):
         """Tiles touched per Gaussian in depth order, scanned to first-pair offsets; the total
         (added up on the CPU from the per-workgroup totals, exact: the GPU scan is uint32)."""
         self._group_totals.clear()
-        for binding, buf in enumerate((self._order, self._rects, self._offsets, self._group_totals)):
+        for binding, buf in enumerate((self._order, self._rects, self._offsets, self._group_totals, self._splats)):
             buf.bind_to_storage_buffer(binding)
         self._count["u_n"].value = n
         self._count.run(*groups(-(-(n + 1) // 256)))
@@ -250,7 +251,7 @@ class ComputeBackend(Renderer):
             d["u_take"].value = run or 0xFFFFFFFF
             for skip in range(0, tiles[0] * tiles[1] if run else 1, run or 1):  # passes: see LLVMPIPE_RUN
                 d["u_skip"].value = skip
-                for binding, buf in enumerate((self._order, self._rects, self._offsets, keys, vals)):
+                for binding, buf in enumerate((self._order, self._rects, self._offsets, keys, vals, self._splats)):
                     buf.bind_to_storage_buffer(binding)
                 d.run(*groups(-(-(end - first) // 256)))
                 self.ctx.memory_barrier()

@@ -45,7 +45,9 @@ def _program(ctx: moderngl.Context, name: str, defines: dict[str, object] | None
     try:
         return ctx.compute_shader(load_shader(name, defines))
     except moderngl.Error as e:  # a GL without compute shaders, or a driver limit the kernel exceeds
-        raise BackendUnavailable(f"this OpenGL cannot compile {name}: {str(e).strip().splitlines()[0]}") from None
+        lines = [line.strip() for line in str(e).splitlines() if line.strip()] or ["unknown error"]
+        why = next((line for line in lines if "error" in line.lower() and line != lines[0]), lines[0])
+        raise BackendUnavailable(f"this OpenGL cannot compile {name}: {why}") from None
 
 
 class GpuScan:
