@@ -24,7 +24,6 @@ from dofview.rendering import AUTO_ORDER, BACKENDS
 from dofview.scene import COLOUR_SPACES, GaussianScene
 from dofview.tonemap import Tonemap
 
-
 RASTERS: tuple[str, ...] = ("auto", *BACKENDS)
 
 
@@ -284,6 +283,18 @@ def tonemap_from_args(args: argparse.Namespace) -> Tonemap:
     else:
         exposure = exposure_from_ev(args.exposure)
     return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background, operator=operator_from_args(args))
+
+
+def stats_from_args(args: argparse.Namespace, renderer, tm: Tonemap, settings: RenderSettings):
+    """The tone-mapping statistics ``--stats`` asks for: pooled over every training view of
+    ``--cameras`` (``joint``, for sequences that must not adapt), or None for each frame's own."""
+    if args.stats != "joint" or not tm.operator.adaptive:
+        return None
+    if args.cameras is None:
+        raise DofviewError("--stats joint pools the views of --cameras: give --cameras")
+    from dofview.api import joint_stats
+
+    return joint_stats(renderer, load_cameras_json(args.cameras), tm.operator, settings)
 
 
 def settings_from_args(args: argparse.Namespace) -> RenderSettings:

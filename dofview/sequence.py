@@ -26,6 +26,7 @@ from dofview.progress import Progress
 from dofview.rendering import Renderer
 from dofview.scene import matrices_from_quats, quat_from_matrix
 from dofview.tonemap import Tonemap, display, to_uint8
+from dofview.tonemap.stats import Stats, StatsSmoother
 
 _FRAME_NUMBER = re.compile(r"%0?\d*d")
 VIDEO_FORMATS = {".mp4": "mp4", ".mov": "mov", ".mkv": "matroska"}
@@ -116,8 +117,14 @@ class Outputs:
 
 def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[Camera, float], Lens],
                     tm: Tonemap, settings: RenderSettings, scene_path: str, out: Outputs,
-                    frames: range, resume: bool = False, lens_info: dict | None = None, log=print) -> int:
+                    frames: range, resume: bool = False, lens_info: dict | None = None, log=print,
+                    stats: Stats | None = None, lens_samples: int = 0) -> int:
     """Render the shots whose index is in ``frames`` to ``out``; returns how many were rendered.
+
+    An adaptive tone-mapping operator gets ``stats`` (``--stats joint``: fixed for the shot) or else
+    each frame's statistics smoothed in time as the viewer smooths them, with the frame interval
+    1/fps as Δt (a skipped or resumed frame does not advance the smoothing). ``lens_samples`` > 0
+    renders each frame as the physical thin lens from that many pinhole passes.
 
     Each EXR carries its frame's camera, focus and aperture (api.exr_header) and
     ``dofview:frame``/``dofview:frames``. With ``resume``, frames whose files all exist are skipped
@@ -127,13 +134,15 @@ def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[C
     total = len(shots)
     todo = [s for s in shots if s.index in frames]
     rendered = 0
+    smoother = StatsSmoother() if stats is None and tm.operator.adaptive else None
     with Progress(f"rendering {len(todo)} frames", len(todo), unit=" frames") as bar:
         for n, shot in enumerate(todo):
             exr, png = frame_name(out.exr, shot.index), out.png and frame_name(out.png, shot.index)
             if not (resume and exr.is_file() and (png is None or png.is_file())):
                 lens = lens_for(shot.camera, shot.focus)
                 save_render(renderer, shot.camera, lens, tm, settings, scene_path, exr, png, half=out.half,
-                            lens_info=lens_info, header={"dofview:frame": shot.index, "dofview:frames": total})
+                            lens_info=lens_info, header={"dofview:frame": shot.index, "dofview:frames": total},
+                            stats=stats, smoother=smoother, dt=1.0 / out.fps, lens_samples=lens_samples)
                 rendered += 1
             bar.update(n + 1, info=exr.name)
     if out.video is not None:

@@ -151,3 +151,34 @@ def test_views_need_cameras(tmp_path, capsys):
     assert rc == 2 and err.strip() == ("dofview: error: --views needs training views: --cameras cameras.json, "
                                        "or a run folder that has one")
     assert os.listdir(tmp_path) == []
+
+
+def test_adaptive_tone_mapping_is_smoothed_along_a_sequence(run, tmp_path):
+    """A sequence with an adaptive operator smooths each frame's statistics in time with Δt = 1/fps
+    (StatsSmoother, as the viewer does); --stats joint holds one set for the whole shot."""
+    import math
+
+    from dofview.tonemap import OPERATORS
+    from dofview.tonemap.stats import SMOOTHING_T0_S, frame_stats
+
+    common = ["render", str(run), "--views", "0:3", "--frames", "3", "--aperture", "0", "--focus", "2",
+              "--tonemap", "reinhard05", "--fps", "24"]
+    assert main([*common, "-o", str(tmp_path / "s_%04d.exr")]) == 0
+    keys, own = [], []
+    for i in range(3):
+        channels, header = read_exr(tmp_path / f"s_{i:04d}.exr")
+        keys.append(json.loads(header["dofview:tonemap_stats"])["key_log2"])
+        exposure = header["dofview:exposure"]
+        rgba = np.stack([channels[c] for c in "RGBA"], -1) / np.array([exposure, exposure, exposure, 1.0], np.float32)
+        own.append(frame_stats(rgba, OPERATORS["reinhard05"]()).key)
+    w = math.exp(-(1 / 24) / SMOOTHING_T0_S)
+    assert keys[0] == pytest.approx(own[0], abs=1e-6)
+    expected = own[0]
+    for i in (1, 2):
+        expected = w * expected + (1 - w) * own[i]
+        assert keys[i] == pytest.approx(expected, abs=1e-4)
+    assert abs(own[2] - own[0]) > 1e-3  # the views differ, so smoothing had something to do
+
+    assert main([*common, "--stats", "joint", "-o", str(tmp_path / "j_%04d.exr")]) == 0
+    joint = {read_exr(tmp_path / f"j_{i:04d}.exr")[1]["dofview:tonemap_stats"] for i in range(3)}
+    assert len(joint) == 1

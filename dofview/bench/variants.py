@@ -12,8 +12,8 @@ from dofview.bench.metrics import log_radiance_error, psnr, ssim
 from dofview.camera import Camera
 from dofview.frame import OPACITY_NORMS, Frame, RenderSettings
 from dofview.lens import Lens
+from dofview.rendering import Renderer
 from dofview.rendering.accumulate import accumulate
-from dofview.rendering.quads import QuadBackend
 from dofview.tonemap import Tonemap, decode, display, encode
 
 
@@ -89,7 +89,7 @@ def pinhole_settings(base: RenderSettings, blend_linear: bool = False) -> Render
     return replace(base, tau=0.0, blend_linear=blend_linear)
 
 
-def make_references(renderer: QuadBackend, camera: Camera, lens: Lens, base: RenderSettings, samples: int,
+def make_references(renderer: Renderer, camera: Camera, lens: Lens, base: RenderSettings, samples: int,
                     blend_variant: bool, tick: Callable[[], None]) -> References:
     """Accumulate ``samples`` pinhole renders (GL renderer, aperture 0) over the lens disk."""
     pin = Lens(lens.focus, 0.0)

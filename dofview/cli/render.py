@@ -25,6 +25,7 @@ from dofview.options import (
     number,
     say_notes,
     settings_from_args,
+    stats_from_args,
     tonemap_from_args,
 )
 
@@ -58,19 +59,12 @@ def run_render(args: argparse.Namespace) -> int:
         return run_sequence(args)
     settings = settings_from_args(args)
     tm = tonemap_from_args(args)
-    if args.stats == "joint" and args.cameras is None:
-        raise DofviewError("--stats joint pools the views of --cameras: give --cameras")
     scene = load_scene_arg(args)
     camera = camera_from_args(args, scene)
     renderer = get_backend(args.raster, scene)
     focus = auto_focus_at(renderer, camera, settings, args.scene) if args.focus == "auto" else args.focus
     lens = lens_from_args(args, camera, float(focus))
-    stats = None
-    if args.stats == "joint" and tm.operator.adaptive:
-        from dofview.api import joint_stats
-        from dofview.io.cameras import load_cameras_json
-
-        stats = joint_stats(renderer, load_cameras_json(args.cameras), tm.operator, settings)
+    stats = stats_from_args(args, renderer, tm, settings)
     save_render(renderer, camera, lens, tm, settings, str(args.scene), args.output, args.png, half=args.half,
                 lens_info=lens_info(args), stats=stats, lens_samples=args.lens_samples)
     say_notes(args)

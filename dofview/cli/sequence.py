@@ -20,6 +20,7 @@ from dofview.options import (
     number,
     say_notes,
     settings_from_args,
+    stats_from_args,
     tonemap_from_args,
 )
 from dofview.rendering import Renderer
@@ -113,7 +114,7 @@ def _views(args: argparse.Namespace) -> tuple[list[Camera], int, int]:
 
 
 def run_sequence(args: argparse.Namespace) -> int:
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     pull = isinstance(args.focus, tuple)
     if pull and args.frames is None:
@@ -146,7 +147,7 @@ def run_sequence(args: argparse.Namespace) -> int:
         raise DofviewError("--video needs the whole shot: render the ranges first, then once more with "
                            "--resume --video")
 
-    renderer = QuadBackend(scene)
+    renderer = get_backend(args.raster, scene)
     if pull:
         ends = [auto_focus_at(renderer, path[i], settings, args.scene) if f == "auto" else f
                 for f, i in zip(args.focus, (0, -1))]
@@ -163,5 +164,6 @@ def run_sequence(args: argparse.Namespace) -> int:
     say_notes(args)
     render_sequence(renderer, shots, lambda cam, focus: lens_from_args(args, cam, focus), tm, settings,
                     str(args.scene), out, range(first_frame, last_frame + 1), args.resume, lens_info(args),
-                    log=lambda line: print(line, file=sys.stderr))
+                    log=lambda line: print(line, file=sys.stderr), stats=stats_from_args(args, renderer, tm, settings),
+                    lens_samples=args.lens_samples)
     return 0
