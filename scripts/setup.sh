@@ -45,7 +45,7 @@ python -m pip install -q -e ".[${extras}]"
 # first, then on PATH). 3.7.0 declares node >= 22 but its CLI and these conversions run on node 20.
 SPLAT_TRANSFORM_VERSION=3.7.0
 st=.tools/node_modules/.bin/splat-transform
-if ! { [ -x "$st" ] && "$st" --version 2>/dev/null | grep -q "v${SPLAT_TRANSFORM_VERSION}"; }; then
+if ! { [ -x "$st" ] && "$st" --version 2>&1 | grep -q "v${SPLAT_TRANSFORM_VERSION}"; }; then
   if ! command -v npm >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     echo "setup: installing nodejs and npm" >&2
     apt-get update -qq
