@@ -108,6 +108,7 @@ def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings
         "dofview:tonemap": json.dumps({"operator": tm.operator.name, **tm.operator.params()}),
         "dofview:render": json.dumps({"tau": settings.tau, "k": settings.k, "opacity_norm": settings.opacity_norm,
                                       "blend_linear": settings.blend_linear, "cut": settings.cut,
+                                      "kernel": settings.kernel,
                                       "colour_space": colour_space}),
     })
     if stats is not None:  # the statistics the PNG was tone mapped with (log2 linear radiance)

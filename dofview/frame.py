@@ -13,6 +13,7 @@ from dofview.tonemap import Tonemap, display, to_uint8
 
 OPACITY_NORMS: tuple[str, ...] = ("none", "energy", "optical-depth")
 CUT_MODES: tuple[str, ...] = ("drop", "conserve")
+KERNELS: tuple[str, ...] = ("gaussian", "disk")
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,10 @@ class RenderSettings:
             τ everywhere (the light of wide, faint blurred splats is lost); "conserve" draws o′ + τ
             inside the ellipse where that falls to τ, which keeps each splat's whole mass (better
             where the lost light dominates the error, worse where blurred stacks over-cover).
+        kernel: the aperture kernel a splat is blurred with (lens.kernel_shape): "gaussian" (Σ₂ + k·R²·I)
+            or "disk" (the same ellipse with the radial profile of a Gaussian spread over a disk of
+            radius 2·sqrt(k)·R, the thin lens's circle of confusion at k = 1/4); "disk" works with the
+            "drop" cut only.
     """
 
     tau: float = 1.0 / 255.0  # chosen by docs/BENCHMARKS.md "Speed against error"
@@ -40,6 +45,7 @@ class RenderSettings:
     blend_linear: bool = False
     near: float = 0.01
     cut: str = "drop"  # "conserve" wins on one real scene of five: docs/BENCHMARKS.md, real scenes
+    kernel: str = "gaussian"  # "disk": docs/BENCHMARKS.md, "A disk-shaped kernel"
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.tau < 1.0):
@@ -50,6 +56,10 @@ class RenderSettings:
             raise DofviewError(f"opacity normalisation must be one of {', '.join(OPACITY_NORMS)}")
         if self.cut not in CUT_MODES:
             raise DofviewError(f"tau cut must be one of {', '.join(CUT_MODES)}, got {self.cut!r}")
+        if self.kernel not in KERNELS:
+            raise DofviewError(f"kernel must be one of {', '.join(KERNELS)}, got {self.kernel!r}")
+        if self.kernel == "disk" and self.cut != "drop":
+            raise DofviewError("the disk kernel works with the drop cut only (--cut drop)")
         if not (math.isfinite(self.near) and self.near > 0):
             raise DofviewError(f"near plane must be finite and > 0, got {self.near}")
 

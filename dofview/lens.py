@@ -154,3 +154,71 @@ def normalise_opacity(opacity, beta, mode: str, xp=np):
     if mode == "optical-depth":
         return 1.0 - xp.exp(beta * xp.log(1.0 - xp.clip(opacity, 0.0, ALPHA_MAX)))
     return opacity
+
+
+# ---- the disk kernel (RenderSettings.kernel "disk") ---------------------------------------------
+# The thin lens convolves each splat with a uniform disk of the CoC radius, not with a Gaussian.
+# The blurred footprint Σ₂′ = Σ₂ + k·R²·I keeps its ellipse (k = 1/4: the disk's second moment)
+# and only its radial profile changes: in Σ₂′'s whitened units (q = dᵀΣ₂′⁻¹d, r = √q) the splat is
+# a Gaussian of std σ̃ (σ̃² = s) spread over a disk of radius R̃ = 2·sqrt(1 − s), where
+# s = σ²/(σ² + k·R²) and σ² = sqrt(det Σ₂) (the geometric mean of the footprint's variances).
+# s = 1 is the Gaussian kernel; s → 0 is the bare disk of radius 2·sqrt(k)·R. The profile is the
+# 1-D box ⊛ Gaussian used radially, F(r) = ½(erf((R̃ + r)/(√2σ̃)) + erf((R̃ − r)/(√2σ̃))): exact
+# in both limits, an approximation in between and for anisotropic splats.
+DISK_MIN_RATIO = 6.25e-4  # k·R²/σ² below this (disk radius < 5 % of σ) draws the Gaussian kernel
+_AS = (0.254829592, -0.284496736, 1.421413741, -1.453152027, 1.061405429)  # Abramowitz-Stegun 7.1.26
+
+
+def erf(x, xp=np):
+    """erf to 1.5e-7 (Abramowitz and Stegun 7.1.26), with only abs/exp/where, like lens.glsl's."""
+    a = abs(x)
+    t = 1.0 / (1.0 + 0.3275911 * a)
+    poly = t * (_AS[0] + t * (_AS[1] + t * (_AS[2] + t * (_AS[3] + t * _AS[4]))))
+    y = 1.0 - poly * xp.exp(-a * a)
+    return xp.where(x < 0, -y, y)
+
+
+def kernel_shape(beta, det, radius, k, xp=np):
+    """Shape s ∈ (0, 1] of the disk kernel from blur_footprint's β and det (det Σ₂ = β²·det):
+    s = σ²/(σ² + k·R²), σ² = sqrt(det Σ₂); 1 (the Gaussian) when the disk is < 5 % of σ."""
+    var = beta * det ** 0.5
+    ratio = k * radius * radius / var
+    return xp.where(ratio < DISK_MIN_RATIO, 1.0, 1.0 / (1.0 + ratio))
+
+
+def _disk_axes(s, xp=np):
+    """(σ̃, R̃, 1/(√2·σ̃)) of shape s, in whitened units."""
+    sig = xp.sqrt(s)
+    return sig, 2.0 * xp.sqrt(xp.maximum(1.0 - s, 0.0)), 0.7071067811865476 / sig
+
+
+def disk_peak_and_area(s, xp=np):
+    """(F(0), area ratio m) of the disk profile of shape s < 1: F(0) = erf(b/√2), b = R̃/σ̃, and
+    m = ∫Gaussian / ∫F/F(0) over the whitened plane = F(0)/M, M = ∫₀^∞ r F(r) dr
+    = ½(R̃² + σ̃²)·erf(b/√2) + σ̃·R̃·φ(b) (φ the standard normal density); m → 1 as s → 1."""
+    sig, rad, inv = _disk_axes(s, xp)
+    f0 = erf(rad * inv, xp)
+    b = rad / sig
+    mass = 0.5 * (rad * rad + s) * f0 + sig * rad * 0.3989422804014327 * xp.exp(-0.5 * b * b)
+    return f0, f0 / mass
+
+
+def disk_support(opacity, tau: float, s, xp=np):
+    """Support bound r2 on q for a disk splat of peak opacity o′ (shape s < 1): r ≤ R̃ + 3σ̃ always,
+    and with τ > 0, r ≤ R̃ + σ̃·sqrt(2 ln(o′·c/τ)) where α ≥ τ can still hold, from
+    F(r) ≤ min(½, 2R̃·φ(0)/σ̃)·exp(−(r − R̃)²/(2σ̃²)) for r ≥ R̃, c = that minimum over F(0)."""
+    sig, rad, _ = _disk_axes(s, xp)
+    f0, _ = disk_peak_and_area(s, xp)
+    n = xp.full_like(s, SUPPORT_MAX)
+    if tau > 0:
+        c = xp.minimum(0.5, 0.7978845608028654 * rad / sig) / f0
+        n = xp.minimum(n, xp.maximum(2.0 * xp.log(xp.maximum(opacity * c, 1e-300) / tau), 0.0))
+    r = rad + sig * xp.sqrt(n)
+    return r * r
+
+
+def disk_profile(q, s, xp=np):
+    """F(√q) of shape s < 1 (unnormalised: the splat's α is o′·F/F(0), clamped and cut)."""
+    _, rad, inv = _disk_axes(s, xp)
+    r = xp.sqrt(q)
+    return 0.5 * (erf((rad + r) * inv, xp) + erf((rad - r) * inv, xp))

@@ -15,7 +15,7 @@ from typing import Callable
 
 from dofview.camera import Camera, look_at
 from dofview.errors import DofviewError
-from dofview.frame import CUT_MODES, OPACITY_NORMS, RenderSettings
+from dofview.frame import CUT_MODES, KERNELS, OPACITY_NORMS, RenderSettings
 from dofview.framing import UP_AXES, UpGuess, guess_up, overview_camera
 from dofview.io.cameras import load_cameras_json, select_camera
 from dofview.io.spz import AXES as SPZ_AXES
@@ -162,6 +162,7 @@ def add_lens_args(p: argparse.ArgumentParser, focus_pull: bool = False) -> None:
     g.add_argument("--opacity-norm", choices=OPACITY_NORMS, default=RenderSettings.opacity_norm, help=f"opacity normalisation under blur (default {RenderSettings.opacity_norm})")
     g.add_argument("--cut", choices=CUT_MODES, default=RenderSettings.cut, help=f"how τ cuts a splat: drop the light below τ, or conserve each splat's mass (default {RenderSettings.cut})")
     g.add_argument("--blend-linear", action="store_true", help="decode splat colours to linear light before blending (sRGB scenes)")
+    g.add_argument("--kernel", choices=KERNELS, default=RenderSettings.kernel, help=f"aperture kernel: a Gaussian, or the splat spread over the CoC disk (default {RenderSettings.kernel})")
 
 
 # ---- building objects from arguments ------------------------------------------------------------
@@ -299,7 +300,8 @@ def stats_from_args(args: argparse.Namespace, renderer, tm: Tonemap, settings: R
 
 def settings_from_args(args: argparse.Namespace) -> RenderSettings:
     return RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm,
-                          blend_linear=args.blend_linear, near=args.near, cut=args.cut)
+                          blend_linear=args.blend_linear, near=args.near, cut=args.cut,
+                          kernel=args.kernel)
 
 
 def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings,
@@ -316,7 +318,7 @@ def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap
              "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}", "--aperture", f"{lens.aperture:.6g}",
              "--exposure", f"{math.log2(tm.exposure):.6g}", "--gamma", f"{tm.gamma:.6g}",
              "--tau", f"{settings.tau:.6g}", "--k", f"{settings.k:.6g}", "--opacity-norm", settings.opacity_norm,
-             "--cut", settings.cut,
+             "--cut", settings.cut, "--kernel", settings.kernel,
              "--colour-space", colour_space]
     if any(tm.background):
         parts += ["--background", ",".join(f"{c:.4g}" for c in tm.background)]

@@ -58,11 +58,12 @@ def test_compute_matches_quad_on_a_real_scene(file):
         assert_same_image(ComputeBackend(scene).render(cam, lens), QuadBackend(scene).render(cam, lens))
 
 
-def test_preprocess_stage_matches_reference_projection():
-    """The per-Gaussian records read back (centre, blurred covariance with the CoC, o′, depth)
-    against rendering.reference.project, in float64, for every Gaussian the kernel kept."""
+@pytest.mark.parametrize("kernel", ["gaussian", "disk"])
+def test_preprocess_stage_matches_reference_projection(kernel):
+    """The per-Gaussian records read back (centre, blurred covariance with the CoC, o′, depth, kernel
+    shape) against rendering.reference.project, in float64, for every Gaussian the kernel kept."""
     scene = random_scene(degree=1, seed=12)
-    settings = RenderSettings(tau=1 / 255)
+    settings = RenderSettings(tau=1 / 255, kernel=kernel)
     lens = Lens(4.0, 70.0)
     r = ComputeBackend(scene, packed=False)
     r.draw(CAM, lens, settings)
@@ -76,7 +77,8 @@ def test_preprocess_stage_matches_reference_projection():
     h = CAM.height
     np.testing.assert_allclose(rec[drawn, 0], pr["mean2d"][sel, 0], atol=1e-3)
     np.testing.assert_allclose(h - rec[drawn, 1], pr["mean2d"][sel, 1], atol=1e-3)
-    ax1, ax2 = rec[drawn, 2:4] * [1, -1], rec[drawn, 4:6] * [1, -1]  # back to y down
+    ax2 = np.stack([-rec[drawn, 3], rec[drawn, 2]], 1) * rec[drawn, 4:5]  # splat_record.glsl: splat_axis2
+    ax1, ax2 = rec[drawn, 2:4] * [1, -1], ax2 * [1, -1]  # back to y down
     conic = ax1[:, :, None] * ax1[:, None, :] + ax2[:, :, None] * ax2[:, None, :]
     cov = np.linalg.inv(conic)
     ref = pr["cov"][sel]
@@ -85,6 +87,11 @@ def test_preprocess_stage_matches_reference_projection():
     assert np.all(np.abs(cov[:, 0, 1] - ref[:, 1]) <= 1e-3 * np.sqrt(ref[:, 0] * ref[:, 2]))
     np.testing.assert_allclose(rec[drawn, 6], pr["opacity"][sel], rtol=1e-4)
     np.testing.assert_allclose(rec[drawn, 7], pr["depth"][sel], rtol=1e-6)
+    np.testing.assert_allclose(rec[drawn, 5], pr["shape"][sel], rtol=1e-5)
+    if kernel == "disk":
+        assert (rec[drawn, 5] < 1).mean() > 0.5  # most splats at A = 70 are spread over a disk
+    else:
+        assert np.all(rec[drawn, 5] == 1)
 
 
 def test_draw_count_and_memory():

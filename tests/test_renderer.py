@@ -41,6 +41,19 @@ def test_gl_matches_reference_for_every_option(backend, norm, blend_linear, cut)
     assert_matches_reference(backend(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
 
 
+@pytest.mark.parametrize("tau", [0.0, 1 / 255])
+@pytest.mark.parametrize("aperture", [30.0, 120.0])
+@pytest.mark.parametrize("norm", ["none", "energy"])
+def test_gl_matches_reference_with_the_disk_kernel(backend, tau, aperture, norm):
+    """The disk kernel (RenderSettings.kernel): its profile, area-ratio opacity and τ-tight support
+    in lens.glsl against the float64 twin in lens.py."""
+    scene = random_scene(degree=1, seed=5)
+    settings = RenderSettings(tau=tau, kernel="disk", opacity_norm=norm)
+    lens = Lens(focus=4.5, aperture=aperture)
+    gl = backend(scene, packed=False).render(CAM, lens, settings)
+    assert_matches_reference(gl, render_reference(scene, CAM, lens, settings, margins=True))
+
+
 def test_linear_hdr_scene_matches_reference(backend):
     scene = random_scene(seed=3, colour_space="linear")
     scene.sh_dc *= 40.0  # radiance far above 1

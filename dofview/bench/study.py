@@ -90,12 +90,14 @@ def study_cases(renderer: QuadBackend, cameras: list[Camera], focus_pcts=(30.0, 
 
 def study_variants() -> dict[str, RenderSettings]:
     """The single-pass settings of the table: pinhole, the anchors (energy normalisation, the
-    reference rasteriser's α ≥ 1/255 cut), the default, and the default with the mass-conserving cut."""
+    reference rasteriser's α ≥ 1/255 cut), the default, the default with the mass-conserving cut, and
+    the default with the disk kernel."""
     anchor = RenderSettings(tau=1 / 255, k=1 / 4, opacity_norm="energy", blend_linear=False, cut="drop")
     out = {"pinhole": anchor}
     out.update({name: replace(anchor, k=k) for name, k in ANCHOR_KS.items()})
     out["default"] = RenderSettings()
     out["conserve cut"] = replace(RenderSettings(), cut="conserve")
+    out["disk kernel"] = replace(RenderSettings(), kernel="disk")
     return out
 
 

@@ -89,7 +89,8 @@ class ComputeBackend(Renderer):
         self._dup = _program(self.ctx, "tiles_duplicate.comp", tile_def)
         self._ranges_prog = _program(self.ctx, "tiles_ranges.comp")
         self._longest_prog = _program(self.ctx, "tiles_longest.comp")
-        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u"})
+        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u",
+                                                              **({"KERNEL_SELECT": 1} if llvmpipe else {})})
         self._order = self.ctx.buffer(reserve=4 * n)
         self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)
         self._rects = self.ctx.buffer(reserve=8 * n)

@@ -12,7 +12,19 @@ import numpy as np
 
 from dofview.camera import Camera
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
-from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, cut_splat, normalise_opacity
+from dofview.lens import (
+    ALPHA_MAX,
+    SUPPORT_MAX,
+    Lens,
+    blur_footprint,
+    coc,
+    cut_splat,
+    disk_peak_and_area,
+    disk_profile,
+    disk_support,
+    kernel_shape,
+    normalise_opacity,
+)
 from dofview.scene import SH_C0, GaussianScene
 from dofview.tonemap import decode
 
@@ -50,8 +62,9 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     """Per-Gaussian screen-space quantities, float64, for the Gaussians in front of the near plane.
 
     Returns a dict of arrays over the M kept Gaussians (front to back): ``idx`` (M,), ``mean2d``
-    (M, 2) pixels, ``cov`` (M, 3) the blurred 2D covariance (xx, xy, yy) px², ``opacity`` (M,) o′,
-    ``depth`` (M,) camera z, ``r2`` (M,) the support bound on dᵀΣ⁻¹d.
+    (M, 2) pixels, ``cov`` (M, 3) the blurred 2D covariance (xx, xy, yy) px², ``opacity`` (M,) o′
+    (o′/F(0) for a disk splat), ``depth`` (M,) camera z, ``r2`` (M,) the support bound on dᵀΣ⁻¹d,
+    ``shape`` (M,) the kernel shape s (1: Gaussian).
     """
     t = camera.world_to_camera(scene.means)
     keep = t[:, 2] > settings.near
@@ -73,15 +86,23 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     radius = coc(iz, lens.aperture, lens.inv_focus)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
-    o = normalise_opacity(scene.opacities[idx].astype(np.float64), beta, settings.opacity_norm)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        shape = kernel_shape(beta, det, radius, settings.k) if settings.kernel == "disk" else np.ones_like(det)
+        shape = np.where(np.isfinite(shape), shape, 1.0)
+    disk = shape < 1.0
+    f0, area = disk_peak_and_area(np.where(disk, shape, 0.5))
+    o = normalise_opacity(scene.opacities[idx].astype(np.float64), beta * np.where(disk, area, 1.0),
+                          settings.opacity_norm)
     with np.errstate(divide="ignore", invalid="ignore"):
         kept, o, r2 = cut_splat(o, settings.tau, settings.cut)
+        r2 = np.where(disk, disk_support(o, settings.tau, np.where(disk, shape, 0.5)), r2)
+    o = np.where(disk, o / f0, o)
     ok = np.isfinite(det) & (det > 0) & kept
     mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)
     sel = np.nonzero(ok)[0]
     return {
         "idx": idx[sel], "mean2d": mean2d[sel], "cov": np.stack([sxx, sxy, syy], 1)[sel],
-        "opacity": o[sel], "depth": t[sel, 2], "r2": r2[sel],
+        "opacity": o[sel], "depth": t[sel, 2], "r2": r2[sel], "shape": shape[sel],
     }
 
 
@@ -104,6 +125,10 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
     det = sxx * syy - sxy * sxy
     conic = np.stack([syy / det, -sxy / det, sxx / det], 1)
     ext = np.sqrt(pr["r2"][:, None] * np.stack([sxx, syy], 1))
+    shape = pr["shape"]
+    disk = shape < 1.0
+    sig = np.sqrt(shape)
+    qmax = np.where(disk, (2.0 * np.sqrt(np.maximum(1.0 - shape, 0.0)) + 3.0 * sig) ** 2, SUPPORT_MAX)
     lo, hi = pr["mean2d"] - ext, pr["mean2d"] + ext
     out = np.zeros((h, w, 4))
     zacc = np.zeros((h, w))
@@ -120,13 +145,18 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
             dy = py.reshape(-1, 1) - pr["mean2d"][hit, 1][None]
             cn = conic[hit]
             q = cn[:, 0] * dx * dx + 2 * cn[:, 1] * dx * dy + cn[:, 2] * dy * dy
-            alpha = np.minimum(ALPHA_MAX, pr["opacity"][hit][None] * np.exp(-0.5 * q))
+            dk = disk[hit][None]
+            profile = np.exp(-0.5 * q)
+            if dk.any():
+                profile = np.where(dk, disk_profile(q, np.where(dk, shape[hit][None], 0.5)), profile)
+            alpha = np.minimum(ALPHA_MAX, pr["opacity"][hit][None] * profile)
+            qm = qmax[hit][None]
             if margins:
-                edge = np.abs(q - 9.0) <= 9e-5
+                edge = np.abs(q - qm) <= 1e-5 * qm
                 if tau > 0:
                     edge |= np.abs(alpha - tau) <= 1e-5 * tau
                 near_cut[y0:y1, x0:x1] = edge.any(axis=1).reshape(y1 - y0, x1 - x0)
-            alpha = np.where((alpha >= tau) & (q <= 9.0), alpha, 0.0)
+            alpha = np.where((alpha >= tau) & (q <= qm), alpha, 0.0)
             trans = np.cumprod(1.0 - alpha, axis=1)
             weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
             rgb = weight @ colour[hit]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import moderngl
 
 from dofview.camera import Camera
-from dofview.frame import CUT_MODES, OPACITY_NORMS, RenderSettings
+from dofview.frame import CUT_MODES, KERNELS, OPACITY_NORMS, RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.base import _float32
 
@@ -31,6 +31,7 @@ def set_projection_uniforms(program: moderngl.Program | moderngl.ComputeShader, 
         "u_opacity_norm": OPACITY_NORMS.index(settings.opacity_norm),
         "u_blend_linear": settings.blend_linear,
         "u_cut": CUT_MODES.index(settings.cut),
+        "u_kernel": KERNELS.index(settings.kernel),
     }
     for name, value in values.items():
         if name in program:

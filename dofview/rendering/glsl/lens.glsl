@@ -69,13 +69,73 @@ void footprint_axes(float sxx, float sxy, float syy, float det, out vec2 e1, out
     e1 = dot(e1, e1) > 0.0 ? normalize(e1) : vec2(1.0, 0.0);
 }
 
+// The disk kernel (dofview/lens.py: kernel_shape ... disk_profile, where the model is written
+// down): the blurred ellipse keeps its shape and, in its whitened units, its radial profile is a
+// Gaussian of std sqrt(s) spread over a disk of radius 2 sqrt(1 - s); s = 1 is the Gaussian kernel.
+const float DISK_MIN_RATIO = 6.25e-4;
+
+float erf_as(float x) {  // Abramowitz-Stegun 7.1.26, |error| < 1.5e-7
+    float a = abs(x);
+    float t = 1.0 / (1.0 + 0.3275911 * a);
+    float y = 1.0 - t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429))))
+                    * exp(-a * a);
+    return x < 0.0 ? -y : y;
+}
+
+// s = sigma^2 / (sigma^2 + k R^2), sigma^2 = sqrt(det Sigma2) = beta sqrt(det).
+float kernel_shape(float beta, float det, float radius, float k) {
+    float ratio = k * radius * radius / (beta * sqrt(det));
+    return ratio < DISK_MIN_RATIO ? 1.0 : 1.0 / (1.0 + ratio);
+}
+
+// Peak F(0) and area ratio m (Gaussian over disk profile) of shape s < 1.
+void disk_peak_and_area(float s, out float f0, out float m) {
+    float sig = sqrt(s);
+    float rad = 2.0 * sqrt(max(1.0 - s, 0.0));
+    float b = rad / sig;
+    f0 = erf_as(0.7071067811865476 * b);
+    m = f0 / (0.5 * (rad * rad + s) * f0 + sig * rad * 0.3989422804014327 * exp(-0.5 * b * b));
+}
+
+// Support bound on q of a disk splat of peak opacity o (lens.py: disk_support).
+float disk_support(float o, float tau, float s, float f0) {
+    float sig = sqrt(s);
+    float rad = 2.0 * sqrt(max(1.0 - s, 0.0));
+    float n = SUPPORT_MAX;
+    if (tau > 0.0) n = min(n, max(2.0 * log(max(o * min(0.5, 0.7978845608028654 * rad / sig) / f0, 1e-30) / tau), 0.0));
+    float r = rad + sig * sqrt(n);
+    return r * r;
+}
+
+// F(r) of a disk splat (lens.py: disk_profile), R = rad, inv = 1 / (sqrt(2) sigma).
+float disk_spread(float r, float rad, float inv) {
+    return 0.5 * (erf_as((rad + r) * inv) + erf_as((rad - r) * inv));
+}
+
 // Alpha of a splat at offset d from its centre, axis1/2 = e1/2 / sqrt(l1/2) (so dot(d, axis) is in
-// std-devs): min(0.99, o' exp(-q/2)), and 0 where it is cut (q > 9, or alpha < tau).
-float splat_alpha(vec2 d, vec2 axis1, vec2 axis2, float o, float tau) {
+// std-devs of the blurred footprint), shape s: for s = 1 min(0.99, o' exp(-q/2)), 0 beyond q = 9;
+// for s < 1 min(0.99, o F(sqrt q)) (o is then o'/F(0)), 0 beyond r = R + 3 sigma; 0 below tau.
+float splat_alpha(vec2 d, vec2 axis1, vec2 axis2, float o, float tau, float s) {
     vec2 u = vec2(dot(d, axis1), dot(d, axis2));
     float q = dot(u, u);  // d^T Sigma'^-1 d
-    if (q > SUPPORT_MAX) return 0.0;
-    float alpha = min(ALPHA_MAX, o * exp(-0.5 * q));
-    if (alpha < tau || !(alpha > 0.0)) return 0.0;
-    return alpha;
+    float alpha;
+#ifndef KERNEL_SELECT
+    if (s >= 1.0) {  // the Gaussian kernel skips the erf
+        if (q > SUPPORT_MAX) return 0.0;
+        alpha = min(ALPHA_MAX, o * exp(-0.5 * q));
+        return alpha < tau || !(alpha > 0.0) ? 0.0 : alpha;
+    }
+#endif
+    // The compute blend loop on llvmpipe (KERNEL_SELECT) has no branch: with one, llvmpipe counts
+    // more loop iterations per splat than the blend pass length allows (tests/test_compute.py:
+    // 70 000 splats in one tile). It evaluates both profiles and selects.
+    bool disk = s < 1.0;
+    float r = sqrt(q);
+    float sig = sqrt(s);
+    float rad = 2.0 * sqrt(max(1.0 - s, 0.0));
+    float spread = disk_spread(r, rad, 0.7071067811865476 / sig);
+    float profile = disk ? spread : exp(-0.5 * q);
+    float support = disk ? rad + 3.0 * sig : 3.0;  // sqrt(SUPPORT_MAX) for the Gaussian
+    alpha = r > support ? 0.0 : min(ALPHA_MAX, o * profile);
+    return (alpha < tau || !(alpha > 0.0)) ? 0.0 : alpha;
 }

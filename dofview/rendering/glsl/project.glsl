@@ -18,6 +18,7 @@ uniform float u_k;          // aperture covariance scale
 uniform int u_opacity_norm; // 0 none, 1 energy (beta), 2 optical depth
 uniform bool u_blend_linear;
 uniform int u_cut;          // the tau cut: 0 drop, 1 conserve (lens.glsl: cut_splat)
+uniform int u_kernel;       // 0 Gaussian, 1 disk (lens.glsl: kernel_shape; never with conserve)
 
 struct Footprint {
     vec2 centre;   // projected mean, pixels (y down)
@@ -29,6 +30,7 @@ struct Footprint {
     float opacity; // o'
     float depth;   // camera z
     vec3 colour;   // view-dependent colour (decoded to linear light when blending linearly)
+    float shape;   // kernel shape s (1: Gaussian; < 1: disk, and opacity is o' / F(0))
 };
 
 mat3 rotation(vec4 q) {  // unit quaternion (w, x, y, z) -> rotation matrix (columns)
@@ -69,10 +71,18 @@ bool project_gaussian(uint g, out Footprint f) {
     float sxy = dot(p0, p1);
     vec3 cr = cross(p0, p1);
     float det, beta;
-    if (!blur_footprint(sxx, syy, dot(cr, cr), coc(iz, u_aperture, u_inv_focus), u_k, det, beta)) return false;
-    float o = normalise_opacity(load_opacity(g), beta, u_opacity_norm);
+    float radius = coc(iz, u_aperture, u_inv_focus);
+    if (!blur_footprint(sxx, syy, dot(cr, cr), radius, u_k, det, beta)) return false;
+    float shape = u_kernel == 1 ? kernel_shape(beta, det, radius, u_k) : 1.0;
+    float f0 = 1.0, area = 1.0;
+    if (shape < 1.0) disk_peak_and_area(shape, f0, area);
+    float o = normalise_opacity(load_opacity(g), beta * area, u_opacity_norm);
     float r2;
     if (!cut_splat(o, u_tau, u_cut, r2)) return false;
+    if (shape < 1.0) {
+        r2 = disk_support(o, u_tau, shape, f0);
+        o /= f0;
+    }
     vec2 p = u_focal * t.xy * iz + u_principal;
     vec2 ext = sqrt(r2 * vec2(sxx, syy));  // the ellipse's axis-aligned half extent
     if (p.x + ext.x < 0.0 || p.x - ext.x > u_viewport.x || p.y + ext.y < 0.0 || p.y - ext.y > u_viewport.y)
@@ -84,6 +94,6 @@ bool project_gaussian(uint g, out Footprint f) {
 #endif
     colour = max(colour, 0.0);
     if (u_blend_linear) colour = pow(colour, vec3(2.2));
-    f = Footprint(p, sxx, sxy, syy, det, r2, o, t.z, colour);
+    f = Footprint(p, sxx, sxy, syy, det, r2, o, t.z, colour, shape);
     return true;
 }

@@ -23,6 +23,7 @@ flat out vec2 v_axis2;
 flat out float v_opacity;
 flat out vec3 v_colour;
 flat out float v_depth;
+flat out float v_shape;     // kernel shape (lens.glsl: splat_alpha)
 
 void cull() {
     gl_Position = vec4(0.0, 0.0, 2.0, 1.0);  // outside the clip volume: nothing rasterised
@@ -32,6 +33,7 @@ void cull() {
     v_opacity = 0.0;
     v_colour = vec3(0.0);
     v_depth = 0.0;
+    v_shape = 1.0;
 }
 
 void main() {
@@ -56,4 +58,5 @@ void main() {
     v_opacity = f.opacity;
     v_colour = f.colour;
     v_depth = f.depth;
+    v_shape = f.shape;
 }

@@ -22,7 +22,7 @@ float min_q_on_rect(vec2 c, vec3 Q, vec2 lo, vec2 hi) {  // Q = (xx, xy, yy)
 }
 
 bool splat_touches_tile(Splat s, uvec2 tile) {
-    vec2 a1 = s.a.zw, a2 = s.b.xy;
+    vec2 a1 = s.a.zw, a2 = splat_axis2(s.a, s.b);
     vec3 Q = vec3(a1.x * a1.x + a2.x * a2.x, a1.x * a1.y + a2.x * a2.y, a1.y * a1.y + a2.y * a2.y);
     vec2 lo = vec2(tile * TILE) + 0.5;
     return min_q_on_rect(s.a.xy, Q, lo, lo + float(TILE - 1u)) <= s.c.w * 1.001;  // c.w = r2

@@ -63,10 +63,11 @@ void main() {
         vec4 a = splats[g].a;
         vec4 b = splats[g].b;
         vec3 colour = splats[g].c.rgb;
+        vec2 axis2 = splat_axis2(a, b);
         live = false;
         for (int k = 0; k < N; ++k) {
             if (T[k] < T_MIN) continue;
-            float alpha = splat_alpha(vec2(px[k]) + 0.5 - a.xy, a.zw, b.xy, b.z, u_tau);
+            float alpha = splat_alpha(vec2(px[k]) + 0.5 - a.xy, a.zw, axis2, b.z, u_tau, b.y);
             float w = alpha * T[k];
             rgb[k] += colour * w;
             wz[k] += b.w * w;

@@ -32,7 +32,7 @@ void main() {
     vec2 flip = vec2(1.0, -1.0);
     vec2 centre = vec2(f.centre.x, u_viewport.y - f.centre.y);
     splats[g] = Splat(vec4(centre, flip * e1 * inversesqrt(l1)),
-                      vec4(flip * vec2(-e1.y, e1.x) * inversesqrt(l2), f.opacity, f.depth), vec4(f.colour, f.r2));
+                      vec4(sqrt(l1) * inversesqrt(l2), f.shape, f.opacity, f.depth), vec4(f.colour, f.r2));
     // The support's axis-aligned box, exact for the ellipse q <= r2; a tile counts when the box
     // reaches into it at all, so no pixel centre inside the ellipse is missed.
     vec2 ext = sqrt(f.r2 * vec2(f.sxx, f.syy));
