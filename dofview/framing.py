@@ -10,7 +10,7 @@ their optical axes and world up is their mean up.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,7 +55,8 @@ def weighted_quantiles(values: np.ndarray, weights: np.ndarray, q) -> np.ndarray
 def _sample(scene: GaussianScene) -> GaussianScene:
     """At most :data:`SAMPLE` Gaussians, every k-th: percentiles and shares need no more."""
     step = -(-scene.count // SAMPLE)
-    return scene if step <= 1 else scene.subset(np.arange(0, scene.count, step))
+    # framing reads positions, sizes, opacities and rotations only: leave the SH rest uncopied
+    return scene if step <= 1 else replace(scene, sh_rest=None).subset(np.arange(0, scene.count, step))
 
 
 def framing_weights(scene: GaussianScene) -> np.ndarray:

@@ -140,24 +140,26 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
 
 def run(args: argparse.Namespace) -> int:
     from dofview.bench.report import write_outputs
-    if args.views:
-        from dofview.bench.study import run_cli
-        return run_cli(args)
     if args.quick and args.width is None and args.height is None:
         args.bench_width = 96
     cfg = config_from_args(args)
     base = RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm, near=args.near)
     tm = Tonemap(exposure=2.0 ** args.exposure)
-    out = args.out or Path(f"bench_{args.scene.stem}")
+    out = args.out or Path(f"{'study' if args.views else 'bench'}_{args.scene.stem}")
     if out.exists() and not out.is_dir():
         raise DofviewError(f"{out}: exists and is not a folder")
     scene = load_scene_arg(args)
+    command = "dofview bench " + " ".join(_bench_argv(args))
+    if args.views:  # real scenes without cameras: the study against the physical thin lens
+        from dofview.bench.study import run_cli
+
+        say_notes(args)
+        return run_cli(args, scene, out, command)
     cameras = bench_cameras(args, scene)
     say_notes(args)
     t0 = time.perf_counter()
     result = run_bench(scene, cameras, cfg, base, tm, scaling=not args.no_scaling)
     out.mkdir(parents=True, exist_ok=True)
-    command = "dofview bench " + " ".join(_bench_argv(args))
     files = write_outputs(out, result, command, time.perf_counter() - t0)
     print(f"{out}: " + ", ".join(p.name for p in files), file=sys.stderr)
     return 0

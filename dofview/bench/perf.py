@@ -180,7 +180,7 @@ def measure_sort(sizes: tuple[int, ...], repeat: int) -> dict:
 
 
 def measure_ui_stall(n: int, repeat: int) -> dict:
-    """The viewer's sort thread (dofview.viewer.sorter) sorting ``n`` Gaussians for a new view while
+    """The viewer's sort thread (dofview.rendering.sorter) sorting ``n`` Gaussians for a new view while
     this thread plays the UI, polling for the result every millisecond as a frame loop would: the
     longest gap between its polls against the sort time. A sort that held the interpreter lock
     would stall the UI for the whole sort (gap ≈ sort time)."""

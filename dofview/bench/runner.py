@@ -38,9 +38,9 @@ from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.progress import Progress
+from dofview.rendering import Renderer, get_backend
 from dofview.rendering.accumulate import accumulate
 from dofview.rendering.focus import auto_focus
-from dofview.rendering import Renderer, get_backend
 from dofview.rendering.reference import project
 from dofview.rendering.sort import front_to_back
 from dofview.scene import GaussianScene

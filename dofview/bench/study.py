@@ -12,7 +12,10 @@ and timed round-robin against the others on the same frames (ratios only: a shar
 from __future__ import annotations
 
 import math
+import sys
+import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -24,8 +27,8 @@ from dofview.frame import RenderSettings
 from dofview.framing import extent, guess_up, overview_camera
 from dofview.lens import Lens
 from dofview.progress import Progress
+from dofview.rendering import Renderer
 from dofview.rendering.progressive import ProgressiveLens
-from dofview.rendering.quads import QuadBackend
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap
 
@@ -73,7 +76,7 @@ def depth_percentiles(frame, pcts) -> list[float]:
     return [float(z[order][np.searchsorted(cw, p / 100.0)]) for p in pcts]
 
 
-def study_cases(renderer: QuadBackend, cameras: list[Camera], focus_pcts=(30.0, 70.0),
+def study_cases(renderer: Renderer, cameras: list[Camera], focus_pcts=(30.0, 70.0),
                 cocs=(6.0, 16.0)) -> list[Case]:
     """Two focus distances × two apertures per camera (see the module docstring)."""
     out = []
@@ -101,7 +104,7 @@ def study_variants() -> dict[str, RenderSettings]:
     return out
 
 
-def run_study(scene: GaussianScene, cases: list[Case], variants: dict[str, RenderSettings], ref_samples: int,
+def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderSettings], ref_samples: int,
               acc_samples=(1, 2, 4, 8, 16, 32, 64), frames: int = 3, tm: Tonemap | None = None) -> list[dict]:
     """Rows of (case, method, samples, psnr, ssim, time_ratio) for every variant and every count of
     the progressive accumulation (the viewer's, rendering/progressive.py: its R2 lens points, not
@@ -110,9 +113,8 @@ def run_study(scene: GaussianScene, cases: list[Case], variants: dict[str, Rende
     all timed round-robin; accumulation counts n pinhole frames (τ = 0). The variant named
     "pinhole" is drawn at aperture 0."""
     tm = tm or Tonemap()
-    renderer = QuadBackend(scene)
     timer = FrameTimer(renderer.ctx)
-    hdr = scene.colour_space == "linear"
+    hdr = renderer.scene.colour_space == "linear"
     base = RenderSettings()
     rows: list[dict] = []
     steps = len(cases) * (ref_samples + max(acc_samples) + len(variants) * (frames + 2) + frames + 1)
@@ -146,7 +148,6 @@ def run_study(scene: GaussianScene, cases: list[Case], variants: dict[str, Rende
                 e = errors(renderer.render(cam, ln, st), truth, tm, hdr)
                 tick()
                 rows.append({**info, "method": name, "samples": 1, **e, "time_ratio": t["wall_med_ms"] / pin_ms})
-    renderer.release()
     return rows
 
 
@@ -200,10 +201,9 @@ def plot_study(path, name: str, summary: dict[str, dict[str, float]], ref_sample
     plt.close(fig)
 
 
-def fixed_aperture_ratio(scene: GaussianScene, cases: list[Case], aperture: float = 100.0, frames: int = 7) -> dict:
+def fixed_aperture_ratio(renderer: Renderer, cases: list[Case], aperture: float = 100.0, frames: int = 7) -> dict:
     """Median frame time at aperture ``aperture`` (default, and with the conserving cut) over the
     pinhole frame at the default τ, per distinct camera and focus of ``cases``, timed round-robin."""
-    renderer = QuadBackend(scene)
     timer = FrameTimer(renderer.ctx)
     prev = study_variants()["conserve cut"]
     out = {"default": [], "conserve cut": []}
@@ -218,7 +218,6 @@ def fixed_aperture_ratio(scene: GaussianScene, cases: list[Case], aperture: floa
         t = [x["wall_med_ms"] for x in time_round_robin(jobs, timer, frames, 1, lambda: None)]
         out["default"].append(t[1] / t[0])
         out["conserve cut"].append(t[2] / t[0])
-    renderer.release()
     return {k: float(np.mean(v)) for k, v in out.items()}
 
 
@@ -231,38 +230,35 @@ def table_lines(name: str, summary: dict[str, dict[str, float]], count: int, n_c
     return lines + [""]
 
 
-def run_cli(args) -> int:
-    """``dofview bench SCENE --views N``: the study on one scene, into ``--out``."""
-    import sys
-    import time as _time
-
+def run_cli(args, scene: GaussianScene, out: Path, command: str) -> int:
+    """``dofview bench SCENE --views N``: the study on one scene, into ``out`` (bench/cli.py has
+    loaded the scene and checked ``out``). One renderer (``--raster``) serves every step."""
     from dofview.bench.report import write_csv
-    from dofview.options import load_scene_arg
+    from dofview.rendering import get_backend
 
-    scene = load_scene_arg(args)
     w = args.width or args.bench_width
     h = args.height or w * 3 // 4
-    out = args.out or __import__("pathlib").Path(f"study_{args.scene.stem}")
     out.mkdir(parents=True, exist_ok=True)
-    t0 = _time.perf_counter()
-    r = QuadBackend(scene)
-    cases = study_cases(r, study_views(scene, args.views, w, h), args.focus_pct, args.coc_px)
-    r.release()
-    ref = args.ref_samples or 128
-    acc = tuple(n for n in (1, 2, 4, 8, 16, 32, 64, 128, 256) if n <= ref)
-    rows = run_study(scene, cases, study_variants(), ref, acc, args.frames or 3, Tonemap(exposure=2.0 ** args.exposure))
+    t0 = time.perf_counter()
+    renderer = get_backend(args.raster, scene)
+    try:
+        cases = study_cases(renderer, study_views(scene, args.views, w, h), args.focus_pct, args.coc_px)
+        ref = args.ref_samples or 128
+        acc = tuple(n for n in (1, 2, 4, 8, 16, 32, 64, 128, 256) if n <= ref)
+        rows = run_study(renderer, cases, study_variants(), ref, acc, args.frames or 3,
+                         Tonemap(exposure=2.0 ** args.exposure))
+        fixed = fixed_aperture_ratio(renderer, cases)
+    finally:
+        renderer.release()
     summary = summarise(rows)
     write_csv(out / "study.csv", rows)
     name = args.scene.name
     plot_study(out / "study.png", name, summary, ref)
-    argv = sys.argv[1:]
-    command = "dofview " + " ".join(argv[argv.index("bench"):] if "bench" in argv else argv)
     lines = [f"# Depth of field against the physical thin lens: {name}", "",
-             (f"`{command}` ({_time.perf_counter() - t0:.0f} s); {w}×{h} px, {args.views} views × focus at depth "
+             (f"`{command}` ({time.perf_counter() - t0:.0f} s); {w}×{h} px, {args.views} views × focus at depth "
               f"percentiles {', '.join(f'{p:g}' for p in args.focus_pct)} × CoC "
               f"{', '.join(f'{c:g}' for c in args.coc_px)} px; truth: {ref} lens samples, linear light; "
-              f"renderer {QuadBackend.name}, llvmpipe timings as ratios."), ""]
-    fixed = fixed_aperture_ratio(scene, cases)
+              f"renderer {renderer.name}, llvmpipe timings as ratios."), ""]
     lines += table_lines(name, summary, scene.count, len(cases))
     lines.append(f"A = 100 (px·unit): frame time / pinhole at the default τ: default {fixed['default']:.2f}×, "
                  f"conserve cut {fixed['conserve cut']:.2f}× (mean over views and focus distances)")

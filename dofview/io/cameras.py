@@ -9,6 +9,7 @@ import numpy as np
 
 from dofview.camera import Camera
 from dofview.errors import DofviewError
+from dofview.io.atomic import atomic_output
 from dofview.io.jsonfile import read_json
 
 
@@ -43,7 +44,8 @@ def save_cameras_json(cameras: list[Camera], path: str | Path) -> None:
             "id": i, "img_name": c.name or f"view_{i:03d}", "width": c.width, "height": c.height,
             "position": c.centre.tolist(), "rotation": c.R.T.tolist(), "fx": c.fx, "fy": c.fy,
         })
-    Path(path).write_text(json.dumps(out, indent=1))
+    with atomic_output(path) as tmp:  # whole or not at all, as every writer here
+        tmp.write_text(json.dumps(out, indent=1))
 
 
 def select_camera(cameras: list[Camera], view: str, source: str = "cameras.json") -> Camera:

@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from dofview.errors import DofviewError, DofviewWarning
+from dofview.io._packed import LOG_SCALE_LIMIT
 from dofview.io.ply_header import Element, read_header
 from dofview.scene import COLOUR_SPACES, GaussianScene
 
@@ -159,9 +160,8 @@ def _activate(path: Path, rows: np.ndarray, colour_space: str,
             rows.base.madvise(mmap.MADV_DONTNEED)  # set (issue 7: load peak ≤ 2× file); page cache keeps them
         if progress:
             progress(e, n)
-    # exp stays finite and normal in float32 inside ±87
-    np.exp(np.clip(scales, -87.0, 87.0, out=scales), out=scales)
-    opacities = (1.0 / (1.0 + np.exp(-np.clip(logits, -87.0, 87.0)))).astype(np.float32)
+    np.exp(np.clip(scales, -LOG_SCALE_LIMIT, LOG_SCALE_LIMIT, out=scales), out=scales)
+    opacities = (1.0 / (1.0 + np.exp(-np.clip(logits, -LOG_SCALE_LIMIT, LOG_SCALE_LIMIT)))).astype(np.float32)
     norm = np.linalg.norm(quats.astype(np.float64), axis=1)
     good_q = norm > 1e-30
     quats[good_q] = (quats[good_q] / norm[good_q, None]).astype(np.float32)

@@ -34,7 +34,11 @@ import numpy as np
 
 from dofview.errors import SceneFormatError
 from dofview.io._common import input_size
-from dofview.io._packed import quats_from_smallest_three, scene_from_arrays
+from dofview.io._packed import (
+    LOG_SCALE_LIMIT,
+    quats_from_smallest_three,
+    scene_from_arrays,
+)
 from dofview.scene import GaussianScene
 
 META = "meta.json"
@@ -252,7 +256,7 @@ def read_sog(path: str | Path, progress: Callable[[int, int], None] | None = Non
             log_scales = smin + (smax - smin) * (s / 255.0)
             cmin, cmax = _numbers(path, meta, "sh0", "mins", length=4), _numbers(path, meta, "sh0", "maxs", length=4)
             v = cmin + (cmax - cmin) * (c / 255.0)
-            sh_dc, opacities = v[:, :3], 1.0 / (1.0 + np.exp(-np.clip(v[:, 3], -87.0, 87.0)))
+            sh_dc, opacities = v[:, :3], 1.0 / (1.0 + np.exp(-np.clip(v[:, 3], -LOG_SCALE_LIMIT, LOG_SCALE_LIMIT)))
         sh_rest = _sh_rest(files, meta, count, version)
     finally:
         files.close()

@@ -34,13 +34,14 @@ Some tools (PlayCanvas splat-transform) write ``.spz`` in PLY axes as they are, 
 from __future__ import annotations
 
 import struct
+import warnings
 import zlib
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from dofview.errors import SceneFormatError
+from dofview.errors import DofviewWarning, SceneFormatError
 from dofview.io._common import input_size
 from dofview.io._packed import (
     LOG_SCALE_LIMIT,
@@ -273,10 +274,6 @@ def read_spz(path: str | Path, progress: Callable[[int, int], None] | None = Non
     Raises:
         SceneFormatError: the file is cut short, corrupt, or of an unsupported version.
     """
-    import warnings
-
-    from dofview.errors import DofviewWarning
-
     path = Path(path)
     if spz_axes is not None and spz_axes not in AXES:
         raise SceneFormatError(f"{path}: spz_axes must be one of {', '.join(AXES)}, got {spz_axes!r}")

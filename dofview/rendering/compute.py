@@ -22,7 +22,13 @@ from dofview.errors import BackendUnavailable, DofviewError
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.base import Renderer
-from dofview.rendering.gpusort import GpuRadixSort, _program, groups, max_buffer_bytes, require_compute
+from dofview.rendering.gpusort import (
+    GpuRadixSort,
+    _program,
+    groups,
+    max_buffer_bytes,
+    require_compute,
+)
 from dofview.rendering.uniforms import set_projection_uniforms
 from dofview.scene import GaussianScene
 

@@ -20,7 +20,6 @@ from dofview.tonemap.base import (
     decode,
     display,
     encode,
-    linear_from_blended,
     to_uint8,
 )
 from dofview.tonemap.bilateral import Bilateral
@@ -45,4 +44,4 @@ OPERATORS: dict[str, type[Operator]] = {
 
 __all__ = ["OPERATORS", "SCENE_ENCODING_GAMMA", "Aces", "AcesFit", "Bilateral", "Clip", "Filmic", "Histogram", "Operator",
            "PbrNeutral", "Reinhard05", "Stats", "StatsSmoother", "Tonemap", "decode", "display", "encode",
-           "frame_stats", "linear_from_blended", "pooled_stats", "to_uint8"]
+           "frame_stats", "pooled_stats", "to_uint8"]

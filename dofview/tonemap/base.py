@@ -62,14 +62,6 @@ def encode(c: np.ndarray) -> np.ndarray:
     return np.power(np.maximum(c, 0.0), 1.0 / SCENE_ENCODING_GAMMA)
 
 
-def linear_from_blended(blended: np.ndarray, encoded: bool) -> np.ndarray:
-    """(H, W, 4) blended RGBA (colour premultiplied) → (H, W, 4) float32 linear RGBA."""
-    out = np.array(blended, dtype=np.float32, copy=True)
-    if encoded:
-        out[..., :3] = decode(out[..., :3])
-    return out
-
-
 def display(linear: np.ndarray, encoded: bool, tm: Tonemap, stats: Stats | None = None,
             depth: np.ndarray | None = None) -> np.ndarray:
     """(H, W, 4) linear RGBA → (H, W, 3) float64 display values in [0, 1] (before 8-bit rounding).

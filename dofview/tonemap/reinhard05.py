@@ -23,8 +23,8 @@ import numpy as np
 
 from dofview.tonemap.operator import Operator, check_range, luminance
 
-DEGENERATE_SPAN = 1e-3
-MIDDLE_GREY = 0.18  # the key is normalised to it (Reinhard 2002's a), so b = 0 gives a mid-grey key  # a grey curve span below this (a constant frame) is not normalised
+DEGENERATE_SPAN = 1e-3  # a grey curve span below this (a constant frame) is not normalised
+MIDDLE_GREY = 0.18  # the key is normalised to it (Reinhard 2002's a), so b = 0 gives a mid-grey key
 
 
 @dataclass(frozen=True)

@@ -78,7 +78,9 @@ def _lens(v: "Viewer") -> None:
     changed_k, k = _slider("k (aperture cov.)", rs.k, 0.0, 1.0)
     changed_norm, norm = imgui.combo("opacity norm.", OPACITY_NORMS.index(rs.opacity_norm), list(OPACITY_NORMS))
     changed_lin, lin = imgui.checkbox("blend in linear light", rs.blend_linear)
+    imgui.begin_disabled(rs.kernel == "disk")  # the disk kernel is defined with the drop cut only
     changed_cut, conserve = imgui.checkbox("tau cut conserves light", rs.cut == "conserve")
+    imgui.end_disabled()
     if changed_tau or changed_k or changed_norm or changed_lin or changed_cut:
         s.render = replace(rs, tau=tau / 255.0, k=k, opacity_norm=OPACITY_NORMS[norm], blend_linear=lin,
                            cut="conserve" if conserve else "drop")

@@ -36,9 +36,9 @@ from dofview.framing import (
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens
 from dofview.options import render_command_line
+from dofview.rendering import Renderer, get_backend
 from dofview.rendering.focus import auto_focus, depth_at, depth_range
 from dofview.rendering.progressive import ProgressiveLens
-from dofview.rendering import Renderer, get_backend
 from dofview.rendering.sorter import SortThread
 from dofview.scene import GaussianScene
 from dofview.tonemap.stats import Stats, StatsSmoother, cdf_domain
@@ -328,6 +328,7 @@ class Viewer:
         camera = self.camera()
         lens = self.lens(camera)
         key = camera.view_key()
+        requested = False  # a new order is on its way from the sort thread
         if self._sort_key is None or self.renderer.gpu_sort:  # a new scene, or a backend that sorts on the GPU
             self.renderer.sort(camera)  # (a no-op when the view did not move)
             self._sort_key = self._order_key = key
@@ -335,10 +336,11 @@ class Viewer:
             self.sorter.request(self.scene.means, camera, self.generation)
             self.sort_requests += 1
             self._sort_key = key
+            requested = True
         state = self._state_key(camera, lens)
         drawn = state == self._drawn_key  # the targets already hold this frame
         if not drawn:
-            if self.progressive.samples:  # its passes left the order of a lens-shifted camera
+            if self.progressive.samples and not requested:  # its passes left a lens-shifted camera's order
                 self.renderer.sort(camera)
             self.renderer.encoded_scene = self.settings.colour_space == "srgb"
             self.scene.colour_space = self.settings.colour_space
@@ -351,7 +353,8 @@ class Viewer:
             if count:
                 self._last_count = now
             self._drawn_key = state
-            self.progressive.restart(keep_single=True)
+            # the single-pass image is kept only where refinement can follow (it copies two float targets)
+            self.progressive.restart(keep_single=lens.aperture > 0 and self.settings.lens_samples_max > 0)
         elif (lens.aperture > 0 and self.progressive.samples < self.settings.lens_samples_max and not self.busy
               and self._order_key == self._sort_key):
             self.progressive.add(camera, lens, self.settings.render)  # still: one more pinhole pass
@@ -363,7 +366,7 @@ class Viewer:
         w, h = camera.width, camera.height
         fh = self.window.framebuffer_size[1]
         tm = self.settings.tonemap()
-        self.renderer.tonemap_to(self.ctx.screen, (0, fh - h, w, h), tm, self.settings.focus_aid, self._adapt(tm, now),
+        self.renderer.tonemap_to(self.ctx.screen, (0, fh - h, w, h), tm, self.settings.focus_aid, self._adapt(tm, now, drawn),
                                  same_frame=drawn)
         for path in self.capture_requests:
             self._write_screen(path, (0, fh - h, w, h))
@@ -376,14 +379,20 @@ class Viewer:
         data = np.frombuffer(self.ctx.screen.read(viewport=viewport, components=3), np.uint8).reshape(h, w, 3)
         write_png(path, data[::-1])
 
-    def _adapt(self, tm, now: float) -> Stats | None:
+    def _adapt(self, tm, now: float, same_frame: bool = False) -> Stats | None:
         """This frame's statistics from the GPU (histograms only are read back), smoothed with the
-        measured frame interval; None for the fixed operators."""
+        measured frame interval; None for the fixed operators. ``same_frame``: the targets hold
+        the image the last statistics came from; once adaptation has settled they are reused
+        (no histogram pass, no read-back and its GPU sync on idle frames)."""
         op = tm.operator
         if not op.adaptive:
             self._frame_stats = self._stats_time = None
             return None
         state = self.smoother.state
+        if (same_frame and self._frame_stats is not None and state is not None and not self.adapting
+                and op.needs_cdf == (state.cdf is not None)):
+            self._stats_time = now
+            return state
         domain = cdf_domain(state) if op.needs_cdf and state is not None and state.cdf is not None else None
         self._frame_stats = self.renderer.frame_stats(op, domain)
         if op.needs_cdf != (state is not None and state.cdf is not None):
