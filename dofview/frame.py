@@ -86,6 +86,12 @@ class Frame:
     meta: dict[str, object] = field(default_factory=dict)
 
     @property
+    def focus_depths(self) -> np.ndarray:
+        """(H, W) the depth to focus by: :attr:`focus_depth` where the renderer gave it, else
+        :attr:`depth`."""
+        return self.depth if self.focus_depth is None else self.focus_depth
+
+    @property
     def alpha(self) -> np.ndarray:
         return self.rgba[..., 3]
 

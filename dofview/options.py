@@ -132,7 +132,7 @@ def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (8
     g.add_argument("--fov", type=number(0, 180, lo_open=True, what="field of view"), help="horizontal field of view, degrees (default 50)")
     g.add_argument("--near", type=number(0, None, lo_open=True, what="near plane"), default=0.01, help="near plane, scene units (default 0.01)")
     g.add_argument("--up", type=up_value, help=f"world up: {'|'.join(UP_AXES)} or a direction x,y,z "
-                                               "(default: guessed from the scene's ground; with cameras, theirs)")
+                                               "(default: guessed from the scene's ground; with cameras, theirs; with --eye/--target, -y)")
     p.add_argument("--raster", choices=RASTERS, default="auto",
                    help="renderer backend: quad (instanced quads, the reference), compute (tile rasteriser in "
                         "compute shaders, OpenGL 4.3), auto (default: the first of "

@@ -18,7 +18,7 @@ from dofview.camera import Camera
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
 from dofview.lens import Lens
 from dofview.rendering.display import DisplayPass
-from dofview.rendering.gl import check_size, headless_context
+from dofview.rendering.gl import check_size, float32_uniform, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, decode
@@ -34,12 +34,6 @@ class DrawStats:
     drawn: int = 0
     total: int = 0
     sort_ms: float = 0.0
-
-
-def _float32(x: float) -> float:
-    """Clamp to float32 range: a uniform of 1/d_f for a focus below 1e-38 would be inf, and 0·inf
-    a NaN circle of confusion even with a pinhole."""
-    return min(x, float(np.finfo(np.float32).max))
 
 
 class Renderer(ABC):
@@ -94,6 +88,11 @@ class Renderer(ABC):
                     buffers[b] = self.ctx.buffer(reserve=-(-per_gaussian[b] * scene.count // 4) * 4)
                 buffers[b].write(np.ascontiguousarray(a), offset=start * per_gaussian[b])
         return buffers
+
+    def _bind_scene(self) -> None:
+        """Bind the scene's storage buffers at the bindings the fetch_*.glsl files read."""
+        for binding, buf in self._buffers.items():
+            buf.bind_to_storage_buffer(binding)
 
     @property
     def gpu_bytes(self) -> int:
@@ -166,7 +165,7 @@ class Renderer(ABC):
         ``viewport``. Adaptive operators use ``stats`` (smoothed or pooled), else this frame's;
         ``same_frame``: nothing was drawn since the last call (the bilateral base layer is kept)."""
         extra = {"u_focus_aid": focus_aid, "u_aperture": self.lens.aperture if self.lens else 0.0,
-                 "u_inv_focus": _float32(self.lens.inv_focus) if self.lens else 0.0}
+                 "u_inv_focus": float32_uniform(self.lens.inv_focus) if self.lens else 0.0}
         self._display.run(self.colour_tex, self.depth_tex, self._encoded, target, viewport, tm, stats, extra, same_frame)
 
     def display_image(self, tm: Tonemap = Tonemap(), focus_aid: bool = False, stats: Stats | None = None) -> np.ndarray:

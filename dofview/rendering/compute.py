@@ -145,10 +145,6 @@ class ComputeBackend(Renderer):
         return np.frombuffer(self._order.read(size=4 * self.scene.count), np.uint32).copy()
 
     # ---- buffers -------------------------------------------------------------------------------
-    def _bind_scene(self) -> None:
-        for binding, buf in self._buffers.items():
-            buf.bind_to_storage_buffer(binding)
-
     def _pair_buffers(self, pairs: int) -> list[moderngl.Buffer]:
         """Tile keys, values and sort scratch for ``pairs`` pairs (grown by half again, never past
         the storage-buffer limit)."""

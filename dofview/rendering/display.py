@@ -13,7 +13,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from dofview.rendering.gl import load_shader
+from dofview.rendering.gl import load_shader, set_uniforms
 from dofview.tonemap import Tonemap
 from dofview.tonemap.stats import (
     COVERED_ALPHA,
@@ -27,13 +27,6 @@ from dofview.tonemap.stats import (
 )
 
 _DEFINES = {"COVERED_ALPHA": repr(COVERED_ALPHA)}
-
-
-def _set(program: moderngl.Program, values: dict[str, object]) -> None:
-    """Set the uniforms the program uses (the compiler drops unused ones)."""
-    for name, value in values.items():
-        if name in program:
-            program[name].value = value
 
 
 class DisplayPass:
@@ -81,7 +74,7 @@ class DisplayPass:
         buf.clear()
         p = self._stats_program
         colour.use(0)
-        _set(p, {"u_colour": 0, "u_encoded": encoded, "u_lo": float(lo), "u_scale": float(bins / (hi - lo)),
+        set_uniforms(p, {"u_colour": 0, "u_encoded": encoded, "u_lo": float(lo), "u_scale": float(bins / (hi - lo)),
                  "u_bins": bins, "u_channels": channels})
         buf.bind_to_storage_buffer(0)
         w, h = colour.size
@@ -121,16 +114,16 @@ class DisplayPass:
         guide, vao = self._program("", "bilateral_guide.frag")
         colour.use(0)
         depth.use(1)
-        _set(guide, self._input_uniforms(encoded, tm))
+        set_uniforms(guide, self._input_uniforms(encoded, tm))
         self._base[0][1].use()
         vao.render(moderngl.TRIANGLES, vertices=3)
         prog, vao = self._program("", "bilateral.frag")
         self._base[0][0].use(0)
-        _set(prog, {"u_guide": 0, "u_values": 1, **tm.operator.filter_uniforms(*colour.size)})
+        set_uniforms(prog, {"u_guide": 0, "u_values": 1, **tm.operator.filter_uniforms(*colour.size)})
         for i, direction in enumerate(((1, 0), (0, 1))):
             if i:
                 self._base[1][0].use(1)
-            _set(prog, {"u_first": i == 0, "u_dir": direction})
+            set_uniforms(prog, {"u_first": i == 0, "u_dir": direction})
             self._base[i + 1][1].use()
             vao.render(moderngl.TRIANGLES, vertices=3)
 
@@ -151,7 +144,7 @@ class DisplayPass:
         prog, vao = self._program(op.glsl, generated=op.generated_glsl())
         for unit, (sampler, tex) in enumerate(self._tables.get(f"tonemap.frag:{op.glsl}", []), start=4):
             tex.use(unit)
-            _set(prog, {sampler: unit})
+            set_uniforms(prog, {sampler: unit})
         colour.use(0)
         depth.use(1)
         values = {**self._input_uniforms(encoded, tm), "u_gamma": float(tm.gamma), **extra,
@@ -163,7 +156,7 @@ class DisplayPass:
         if op.needs_base:
             self._base[2][0].use(3)
             values["u_base"] = 3
-        _set(prog, values)
+        set_uniforms(prog, values)
         target.use()
         self.ctx.viewport = viewport
         vao.render(moderngl.TRIANGLES, vertices=3)

@@ -13,7 +13,7 @@ def depth_at(frame: Frame, x: float, y: float, radius: int = 2, min_alpha: float
 
     Only well-covered pixels (α > ``min_alpha``) count; None when the window holds none.
     """
-    depth = frame.depth if frame.focus_depth is None else frame.focus_depth
+    depth = frame.focus_depths
     h, w = depth.shape
     xi, yi = int(np.floor(x)), int(np.floor(y))
     x0, x1 = max(xi - radius, 0), min(xi + radius + 1, w)
@@ -41,7 +41,7 @@ def nearest_depth(frame: Frame, x: float, y: float, count: int) -> float | None:
 
     Covered means α > 0.5, or, in a frame of nothing but haze, α > 0.05; None when no pixel is.
     """
-    depth = frame.depth if frame.focus_depth is None else frame.focus_depth
+    depth = frame.focus_depths
     for min_alpha in (0.5, 0.05):
         ys, xs = np.nonzero((frame.alpha > min_alpha) & (depth > 0))
         if xs.size:
@@ -60,7 +60,7 @@ def nearest_depth(frame: Frame, x: float, y: float, count: int) -> float | None:
 def depth_range(frame: Frame, lo_pct: float = 2.0, hi_pct: float = 98.0) -> tuple[float, float] | None:
     """(near, far): percentiles of the focus depth over the well-covered pixels (α > 0.5), scene
     units; None when no pixel is. The viewer scales its focus and aperture sliders by it."""
-    depth = frame.depth if frame.focus_depth is None else frame.focus_depth
+    depth = frame.focus_depths
     d = depth[(frame.alpha > 0.5) & (depth > 0)]
     if d.size == 0:
         return None

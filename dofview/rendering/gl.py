@@ -11,6 +11,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import moderngl
+import numpy as np
 
 from dofview.errors import DofviewError
 
@@ -61,3 +62,17 @@ def check_size(ctx: moderngl.Context, width: int, height: int) -> None:
         raise DofviewError(f"image size must be at least 1×1, got {width}×{height}")
     if width > limit or height > limit:
         raise DofviewError(f"image size {width}×{height} exceeds this OpenGL's limit of {limit} pixels per side")
+
+
+def float32_uniform(x: float) -> float:
+    """Clamp to float32 range: a uniform of 1/d_f for a focus below 1e-38 would be inf, and 0·inf
+    a NaN circle of confusion even with a pinhole."""
+    return min(x, float(np.finfo(np.float32).max))
+
+
+def set_uniforms(program: moderngl.Program, values: dict[str, object]) -> None:
+    """Set the uniforms ``program`` uses (the compiler drops unused ones, so a shared set of values
+    serves programs that read only part of it)."""
+    for name, value in values.items():
+        if name in program:
+            program[name].value = value

@@ -71,8 +71,7 @@ class QuadBackend(Renderer):
         p = self.program
         set_projection_uniforms(p, camera, lens, settings)
         p["u_count"].value = count
-        for binding, buf in self._buffers.items():
-            buf.bind_to_storage_buffer(binding)
+        self._bind_scene()
         self._order.bind_to_storage_buffer(3)
         if count:
             self._counter.write(np.zeros(1, np.uint32).tobytes())

@@ -8,7 +8,7 @@ import moderngl
 from dofview.camera import Camera
 from dofview.frame import CUT_MODES, KERNELS, OPACITY_NORMS, RenderSettings
 from dofview.lens import Lens
-from dofview.rendering.base import _float32
+from dofview.rendering.gl import float32_uniform, set_uniforms
 
 
 def set_projection_uniforms(program: moderngl.Program | moderngl.ComputeShader, camera: Camera, lens: Lens,
@@ -26,13 +26,11 @@ def set_projection_uniforms(program: moderngl.Program | moderngl.ComputeShader, 
         "u_near": settings.near,
         "u_tau": settings.tau,
         "u_aperture": lens.aperture,
-        "u_inv_focus": _float32(lens.inv_focus),
+        "u_inv_focus": float32_uniform(lens.inv_focus),
         "u_k": settings.k,
         "u_opacity_norm": OPACITY_NORMS.index(settings.opacity_norm),
         "u_blend_linear": settings.blend_linear,
         "u_cut": CUT_MODES.index(settings.cut),
         "u_kernel": KERNELS.index(settings.kernel),
     }
-    for name, value in values.items():
-        if name in program:
-            program[name].value = value
+    set_uniforms(program, values)
