@@ -91,6 +91,23 @@ class PhysicalLens:
         return Lens(focus=focus, aperture=self.strength(fx, focus))
 
 
+def aperture_for_blur(radius_px: float, focus: float, near: float, far: float) -> float:
+    """Aperture strength A (px·scene unit) at which the largest blur in view has ``radius_px``.
+
+    The largest blur is at the nearest or the farthest depth in view (``near``, ``far``: camera
+    z in scene units, 0 < near ≤ far, far may be inf), for focus distance ``focus``:
+    R = ½·A·|1/z − 1/d_f|. A flat view (near = far = focus) would need an infinite aperture, so
+    the spread is taken as at least 10 % of 1/focus.
+    """
+    if not (math.isfinite(radius_px) and radius_px >= 0):
+        raise DofviewError(f"blur radius must be a finite number of pixels ≥ 0, got {radius_px}")
+    inv_f = 0.0 if math.isinf(focus) else 1.0 / focus
+    inv_near = 1.0 / near
+    inv_far = 0.0 if math.isinf(far) else 1.0 / far
+    worst = max(abs(inv_near - inv_f), abs(inv_far - inv_f), 0.1 * (inv_f or inv_near))
+    return 2.0 * radius_px / worst
+
+
 def exposure_from_ev(ev: float) -> float:
     """Linear exposure multiplier 2^EV."""
     if not math.isfinite(ev):

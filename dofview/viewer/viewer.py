@@ -34,7 +34,7 @@ from dofview.framing import (
     rig_up,
 )
 from dofview.io.cameras import load_cameras_json
-from dofview.lens import Lens
+from dofview.lens import Lens, aperture_for_blur
 from dofview.options import render_command_line
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.focus import auto_focus, depth_at, depth_range
@@ -273,11 +273,9 @@ class Viewer:
 
     def aperture_for_blur(self, radius_px: float) -> float:
         """Aperture A at which the largest blur in view (nearest or farthest depth, at the current
-        focus) has a radius of ``radius_px`` pixels: R = A/2·|1/z − 1/focus|."""
+        focus) has a radius of ``radius_px`` pixels (:func:`dofview.lens.aperture_for_blur`)."""
         near, far = self.depth_span
-        inv_f = 1.0 / self.settings.focus
-        worst = max(abs(1.0 / near - inv_f), abs(1.0 / far - inv_f), 0.1 * inv_f)  # a flat view: 10 % of 1/focus
-        return 2.0 * radius_px / worst
+        return aperture_for_blur(radius_px, self.settings.focus, near, far)
 
     def save(self, path: str | Path | None = None, png: bool | None = None) -> None:
         """Write the current view as EXR (and PNG beside it), exactly as ``dofview render`` would."""
