@@ -8,11 +8,13 @@ One call renders one view, in the spirit of gsplat's ``rasterization()``::
     frame = dofview.render(scene, camera, dofview.Lens(focus=4.0, aperture=60.0))
     frame.rgba.shape, frame.depth.shape                        # (240, 320, 4), (240, 320)
     frame.save_exr("cards.exr")                                # linear RGBA + Z
-    frame.save_png("cards.png", dofview.Tonemap(exposure=2.0))
+    frame.save_png("cards.png", dofview.Tonemap(exposure=1.0))  # +1 EV
 
 Units: positions and depths in scene units; ``Lens.aperture`` A in px·(scene unit), so the blur
 radius of a point at camera depth z is R = ½·A·|1/z − 1/focus| pixels; ``Lens.focus`` is a camera
-z-depth. A :class:`~dofview.frame.Frame` holds (H, W, 4) float32 linear RGB premultiplied by
+z-depth. Exposure, here (``Tonemap.exposure``) as on the command line (``--exposure``), in the viewer
+and in the EXR header (``dofview:exposure``), is in EV stops: the light is scaled by 2^EV
+(``Tonemap.multiplier``). A :class:`~dofview.frame.Frame` holds (H, W, 4) float32 linear RGB premultiplied by
 coverage A, and (H, W) float32 depth Z (α-weighted camera z, 0 where nothing was drawn).
 
 :func:`render` uploads the scene each call; to render many views of one scene, keep a renderer:
@@ -92,16 +94,19 @@ def render(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0), *,
 
 
 def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings, colour_space: str,
-               scene_path: str | None = None, lens_info: dict[str, float | None] | None = None,
+               scene_path: str | None = None, lens_info: dict[str, object] | None = None,
                stats: Stats | None = None) -> dict[str, object]:
-    """dofview's EXR header attributes for one view: version, scene, camera, lens, exposure,
-    gamma and splatting settings (JSON strings where structured)."""
+    """dofview's EXR header attributes for one view: version, scene, camera (with the reference
+    width its aperture strengths are given at), lens (the strength A used on this image, and
+    ``lens_info``: the physical-lens values and the options as asked), exposure, gamma and
+    splatting settings (JSON strings where structured)."""
     header: dict[str, object] = {"dofview:version": __version__}
     if scene_path is not None:
         header["dofview:scene"] = scene_path
     header.update({
         "dofview:camera": json.dumps({"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
-                                      "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist()}),
+                                      "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist(),
+                                      "ref_width": camera.ref_width}),
         "dofview:lens": json.dumps({"focus": lens.focus, "aperture": lens.aperture, **(lens_info or {})}),
         "dofview:exposure": tm.exposure,
         "dofview:gamma": tm.gamma,
@@ -124,7 +129,7 @@ def joint_stats(renderer: Renderer, cameras: list[Camera], operator, settings: R
     for cam in cameras:
         frames.append(renderer.render(cam.resized(width, max(1, round(cam.height * width / cam.width))),
                                       Lens(1.0, 0.0), settings).rgba)
-    return pooled_stats(frames, operator)
+    return pooled_stats(frames, operator, renderer.scene.colour_space == "srgb")
 
 
 def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings,
@@ -152,7 +157,7 @@ def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, set
     else:
         frame = renderer.render(camera, lens, settings)
     if tm.operator.adaptive and stats is None:
-        stats = frame_stats(frame.rgba, tm.operator)
+        stats = frame_stats(frame.rgba, tm.operator, renderer.scene.colour_space == "srgb")
         if smoother is not None:
             stats = smoother.update(stats, dt)
     frame.meta = {**exr_header(camera, lens, tm, settings, renderer.scene.colour_space, scene_path, lens_info,

@@ -13,6 +13,10 @@ import numpy as np
 
 from dofview.errors import DofviewError
 
+# The image width at which an aperture strength A is meant for a camera without a size of its own
+# (--eye/--target, the automatic framing): ``dofview render``'s default width.
+REFERENCE_WIDTH = 800
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -25,6 +29,10 @@ class Camera:
         R: (3, 3) float64 world → camera rotation (rows are the camera axes in world space).
         T: (3,) float64 world → camera translation, scene units: x_cam = R x_world + T.
         name: an image name when the camera came from cameras.json.
+        ref_width: the image width in pixels at which an aperture strength A holds as given
+            (0 at construction: this camera's own width). :meth:`resized` keeps it, so
+            :meth:`scaled_aperture` makes A follow f_x (A = f_x·D, D the lens diameter) and the
+            same command at another size gives the same picture, scaled.
     """
 
     width: int
@@ -36,8 +44,11 @@ class Camera:
     R: np.ndarray
     T: np.ndarray
     name: str = ""
+    ref_width: int = 0
 
     def __post_init__(self) -> None:
+        if self.ref_width <= 0:
+            object.__setattr__(self, "ref_width", int(self.width))
         object.__setattr__(self, "R", np.asarray(self.R, dtype=np.float64).reshape(3, 3))
         object.__setattr__(self, "T", np.asarray(self.T, dtype=np.float64).reshape(3))
 
@@ -63,6 +74,11 @@ class Camera:
         """(N, 3) world points → (N, 2) float64 pixel coordinates."""
         t = self.world_to_camera(points)
         return np.stack([self.fx * t[:, 0] / t[:, 2] + self.cx, self.fy * t[:, 1] / t[:, 2] + self.cy], axis=1)
+
+    def scaled_aperture(self, aperture: float) -> float:
+        """Aperture strength A (px·scene unit) at this image width for a strength given at
+        :attr:`ref_width`: A·width/ref_width, and ``aperture`` itself, bit for bit, at that width."""
+        return aperture if self.width == self.ref_width else aperture * self.width / self.ref_width
 
     def resized(self, width: int, height: int) -> "Camera":
         """The same view at another image size: fx, cx scale with width and fy, cy with height."""

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dofview.errors import DofviewError
+from dofview.lens import exposure_from_ev
 from dofview.tonemap import Tonemap, display, to_uint8
 
 OPACITY_NORMS: tuple[str, ...] = ("none", "energy", "optical-depth")
@@ -99,13 +100,13 @@ class Frame:
         """(H, W, 3) uint8 display image."""
         return to_uint8(display(self.rgba, self.encoded, tm or Tonemap(), depth=self.depth))
 
-    def save_exr(self, path: str | Path, *, exposure: float = 1.0, half: bool = False) -> None:
-        """Write R, G, B, A (linear, premultiplied, × ``exposure``; float32 or half) and Z (float32)
-        with :attr:`meta` in the header; whole or not at all."""
+    def save_exr(self, path: str | Path, *, exposure: float = 0.0, half: bool = False) -> None:
+        """Write R, G, B, A (linear, premultiplied, × 2^``exposure``, EV stops; float32 or half) and
+        Z (float32) with :attr:`meta` in the header; whole or not at all."""
         from dofview.io.exr import write_exr
 
         rgba = self.rgba.copy()
-        rgba[..., :3] *= exposure
+        rgba[..., :3] *= exposure_from_ev(exposure)
         write_exr(path, rgba, self.depth, half=half, header=self.meta)
 
     def save_png(self, path: str | Path, tm: Tonemap | None = None) -> None:

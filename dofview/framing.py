@@ -3,8 +3,9 @@ a set of training views.
 
 Without cameras a scene is framed from its opacity-weighted percentile box (floaters and
 near-transparent haze do not shrink the object to a dot), looked at slightly from above along the
-world up that :func:`guess_up` finds. With cameras the orbit pivot is the point nearest to all
-their optical axes and world up is their mean up.
+world up that :func:`guess_up` finds; a scene that surrounds its centre (a room) is seen from
+inside. With cameras the orbit pivot is the point nearest to all their optical axes and world up
+is their mean up.
 """
 
 from __future__ import annotations
@@ -28,6 +29,13 @@ ELONGATION = 1.5  # without a ground, an axis this many times longer than the ot
 FLAT_RATIO = 0.3  # a Gaussian is flat when its smallest scale is below this fraction of the middle one
 GROUND_BAND = 0.25  # the ground is sought in this fraction of the box along each direction
 MIN_GROUND_SHARE = 0.2  # below this share of the flat mass there is no ground to speak of
+RIM = 0.1  # a face's middle is its footprint less this fraction of it on every side
+CARRIED_SHARE = 0.01  # a face with less of the rest over its middle (and not under its centre) carries nothing
+WALL_SHARE = 0.05  # a wall holds at least this share of the flat mass
+WALL_THICKNESS = 0.05  # and its middle 80 % lies within this fraction of the box's extent
+CORE = 0.25  # the middle of the box: this fraction of its half-extent around its centre
+EMPTY_CORE = 0.01  # a middle holding less than this share of the scene's weight is empty
+INSIDE_BACK = 0.5  # seen from inside, the camera stands this fraction of the half-length behind the centre
 ELEVATION_DEG = 20.0  # the overview camera looks down on the scene by this much
 SAMPLE = 200_000  # statistics are taken over at most this many Gaussians (an even stride through the file)
 FILL = 0.8  # the box's corners fill this fraction of the frame (the 2–98 % box leaves tails out)
@@ -122,7 +130,8 @@ def guess_up(scene: GaussianScene) -> UpGuess:
        directions d the score is the flat mass (opacity × area of the flat face) whose normal lies
        along d, among the Gaussians in the lowest quarter of the box along d, as a share of all
        flat mass (−y's counts ×1.5). A ground holds ≥ 20 % of the flat mass and ≥ 1.5× the next
-       side's score.
+       side's score, and carries the scene (:func:`_carried`); one that carries nothing is an
+       object's top, the sides of a box hanging from its edges, and up points towards it.
     2. Tall axis. Without a ground (a figure, a statue, a guitar), a box ≥ 1.5× longer along one
        axis than along the others stands on it; the sign is the convention's (−y, +z, +x).
     3. Otherwise −y, the 3DGS/COLMAP convention.
@@ -144,19 +153,25 @@ def guess_up(scene: GaussianScene) -> UpGuess:
     return UpGuess("-y", "no ground and no tall axis: the 3DGS convention")
 
 
-def _ground(scene: GaussianScene) -> UpGuess | None:
-    """The up direction a ground of flat Gaussians shows (step 1 of :func:`guess_up`), or None."""
+def _flat_mass(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) float64 flat mass (opacity × area of the flat face; 0 for a Gaussian that is not flat) and
+    (N, 3) unit normals (the axis of the smallest scale)."""
     scales = scene.scales.astype(np.float64)
     order = np.argsort(scales, axis=1)
     s_min = np.take_along_axis(scales, order[:, :1], 1)[:, 0]
     s_mid = np.take_along_axis(scales, order[:, 1:2], 1)[:, 0]
     s_max = np.take_along_axis(scales, order[:, 2:], 1)[:, 0]
     flat = s_min < FLAT_RATIO * s_mid
-    mass = scene.opacities.astype(np.float64) * s_mid * s_max * flat
+    normal = np.take_along_axis(scene.rotation_matrices(), order[:, None, :1], 2)[:, :, 0]  # (N, 3) columns
+    return scene.opacities.astype(np.float64) * s_mid * s_max * flat, normal
+
+
+def _ground(scene: GaussianScene) -> UpGuess | None:
+    """The up direction a ground of flat Gaussians shows (step 1 of :func:`guess_up`), or None."""
+    mass, normal = _flat_mass(scene)
     total = float(mass.sum())
     if total <= 0:
         return None
-    normal = np.take_along_axis(scene.rotation_matrices(), order[:, None, :1], 2)[:, :, 0]  # (N, 3) columns
     lo, hi = robust_box(scene)
     scores = {}
     for label in UP_AXES:
@@ -170,18 +185,92 @@ def _ground(scene: GaussianScene) -> UpGuess | None:
     if scores[best] < MIN_GROUND_SHARE or weighted[best] < DOMINANCE * weighted[runner]:
         return None
     side = ("high " if best[0] == "-" else "low ") + best[1]
+    a = "xyz".index(best[1])
+    t = (scene.means[:, a] - lo[a]) / max(hi[a] - lo[a], 1e-12)
+    face = (t < GROUND_BAND if best[0] == "+" else t > 1.0 - GROUND_BAND)
+    share, centred = _carried(scene, a, mass * normal[:, a] ** 2 * face, ~face)
+    if share < CARRIED_SHARE and not centred:
+        top = ("-" if best[0] == "+" else "+") + best[1]
+        return UpGuess(top, f"flat Gaussians lie as a face on the {side} side ({scores[best]:.0%} of the flat mass) "
+                            f"that carries nothing ({share:.1%} of the rest over its middle, the rest off-centre): "
+                            "the top of a scanned object, whose sides hang from its edges")
     return UpGuess(best, f"flat Gaussians lie as a ground on the {side} side: {scores[best]:.0%} of the flat mass, "
                          f"next {runner} {scores[runner]:.0%}")
+
+
+def _carried(scene: GaussianScene, axis: int, face_mass: np.ndarray, rest: np.ndarray) -> tuple[float, bool]:
+    """Whether a flat face carries the scene beyond it (``rest`` (N,) bool, weighed by
+    :func:`framing_weights`): (the share of the rest over the face's middle, whether the rest's
+    centre of mass is over it). The middle is the face's footprint (the 5–95 % extent of
+    ``face_mass`` (N,) across ``axis``) less :data:`RIM` of it on every side. What stands on a
+    ground stands over its middle, and a ground is under its object's centre of mass; the sides of
+    a box hang from the edges of its top (a scan never sees the face an object rests on)."""
+    w = framing_weights(scene) * rest
+    if w.sum() <= 0 or face_mass.sum() <= 0:
+        return 1.0, True
+    over, centred = np.ones(scene.count, bool), True
+    for b in (b for b in range(3) if b != axis):
+        f_lo, f_hi = weighted_quantiles(scene.means[:, b], face_mass, [0.05, 0.95])
+        lo, hi = f_lo + RIM * (f_hi - f_lo), f_hi - RIM * (f_hi - f_lo)
+        over &= (scene.means[:, b] > lo) & (scene.means[:, b] < hi)
+        centred &= bool(lo < float(w @ scene.means[:, b]) / float(w.sum()) < hi)
+    return float(w[over].sum() / w.sum()), centred
+
+
+def walled_axes(scene: GaussianScene, up: np.ndarray) -> list[int]:
+    """The horizontal world axes (of ``up`` (3,)) with a wall at both ends, and an empty middle:
+    the scene surrounds its robust centre (a room, a street between façades), so it is seen from
+    inside. A wall is a plane of flat Gaussians facing along the axis in the outer :data:`GROUND_BAND`
+    of the box at that end, holding ≥ :data:`WALL_SHARE` of the flat mass, its middle 80 % within
+    :data:`WALL_THICKNESS` of the box's extent (a curved shell, a burger's side, is no wall). The
+    middle is empty when < :data:`EMPTY_CORE` of the weight (:func:`framing_weights`) is within
+    :data:`CORE` of the half-extent around the centre (an object fills its own middle)."""
+    scene = _sample(scene)
+    if scene.count == 0:
+        return []
+    lo, hi = robust_box(scene)
+    size = np.maximum(hi - lo, 1e-12)
+    w = framing_weights(scene)
+    core = np.all(np.abs(scene.means - (lo + hi) / 2) < CORE * size / 2, axis=1)
+    if w.sum() <= 0 or w[core].sum() >= EMPTY_CORE * w.sum():
+        return []
+    mass, normal = _flat_mass(scene)
+    total = float(mass.sum())
+    walled = []
+    for a in range(3):
+        if total <= 0 or abs(float(up[a])) > 0.5:  # not a horizontal axis
+            continue
+        t = (scene.means[:, a] - lo[a]) / size[a]
+        for end in (t < GROUND_BAND, t > 1.0 - GROUND_BAND):
+            m = mass * normal[:, a] ** 2 * end
+            if m.sum() < WALL_SHARE * total:
+                break
+            p10, p90 = weighted_quantiles(t, m, [0.1, 0.9])
+            if p90 - p10 > WALL_THICKNESS:
+                break
+        else:
+            walled.append(a)
+    return walled
 
 
 def overview_camera(scene: GaussianScene, width: int, height: int, fov_deg: float = 50.0,
                     up: np.ndarray | None = None) -> Camera:
     """A camera looking at the scene's centre of mass (the mean of the Gaussians inside
     :func:`robust_box`, weighted as there), from ``ELEVATION_DEG`` above the horizon of ``up`` (default −y), at
-    the distance where the box's corners fill ``FILL`` of the frame."""
+    the distance where the box's corners fill ``FILL`` of the frame.
+
+    A scene that surrounds its centre (:func:`walled_axes`: a room, a street) is seen from inside
+    instead: level, along the box's longest horizontal axis, from :data:`INSIDE_BACK` of its
+    half-length behind the centre, so that the first frame is the room, not the outside of its walls."""
     up = axis_vector("-y") if up is None else np.asarray(up, np.float64) / np.linalg.norm(up)
     lo, hi = robust_box(scene)
     centre = (lo + hi) / 2
+    if walled_axes(scene, up):
+        horizontal = [a for a in range(3) if abs(float(up[a])) <= 0.5]
+        a = max(horizontal, key=lambda k: hi[k] - lo[k])
+        along = np.eye(3)[a]
+        eye = centre - INSIDE_BACK * (hi[a] - lo[a]) / 2 * along
+        return look_at(eye, eye + along, width, height, fov_deg, up)
     scene = _sample(scene)
     if scene.count:
         inside = np.all((scene.means >= lo) & (scene.means <= hi), axis=1)
@@ -204,6 +293,23 @@ def overview_camera(scene: GaussianScene, width: int, height: int, fov_deg: floa
                float(np.max(np.abs(cam_axes[:, 1]) / ty - cam_axes[:, 2])),
                1.05 * float(np.max(-cam_axes[:, 2])), 1e-6)
     return look_at(centre - dist * fwd, centre, width, height, fov_deg, up)
+
+
+def count_in_view(scene: GaussianScene, camera: Camera, near: float = 0.01) -> int:
+    """How many Gaussians reach into ``camera``'s frustum (beyond ``near``, scene units), each taken
+    as the sphere of 3 × its largest standard deviation: an upper bound of what the renderer draws,
+    so 0 means the camera sees none of the scene."""
+    if scene.count == 0:
+        return 0
+    t = camera.world_to_camera(scene.means)  # (N, 3): right, down, forward
+    r = 3.0 * scene.scales.max(axis=1).astype(np.float64)
+    w, h = camera.width, camera.height
+    # inward normals of the four side planes through the centre and the image edges
+    sides = np.array([[camera.fx, 0.0, camera.cx], [-camera.fx, 0.0, w - camera.cx],
+                      [0.0, camera.fy, camera.cy], [0.0, -camera.fy, h - camera.cy]])
+    sides /= np.linalg.norm(sides, axis=1, keepdims=True)
+    inside = (t[:, 2] + r > near) & np.all(t @ sides.T > -r[:, None], axis=1)
+    return int(np.count_nonzero(inside))
 
 
 def rig_centre(cameras: list[Camera]) -> np.ndarray | None:

@@ -108,6 +108,62 @@ def aperture_for_blur(radius_px: float, focus: float, near: float, far: float) -
     return 2.0 * radius_px / worst
 
 
+def aperture_at_depth(radius_px: float, focus: float, depth: float) -> float:
+    """Aperture strength A (px·scene unit) at which a point at camera depth ``depth`` (scene
+    units, may be inf) has a blur of radius ``radius_px`` for focus distance ``focus``:
+    A = 2·R / |1/depth − 1/d_f|. The focus plane itself has no blur to ask for: refused."""
+    if not (math.isfinite(radius_px) and radius_px >= 0):
+        raise DofviewError(f"blur radius must be a finite number of pixels ≥ 0, got {radius_px}")
+    inv_d, inv_f = (0.0 if math.isinf(v) else 1.0 / v for v in (depth, focus))
+    spread = abs(inv_d - inv_f)
+    if spread <= 1e-9 * max(inv_d, inv_f):
+        raise DofviewError(f"blur at depth {depth:g}: that is the focus distance, where nothing is blurred; "
+                           "name a depth in front of or behind it")
+    return 2.0 * radius_px / spread
+
+
+@dataclass(frozen=True)
+class BlurSpec:
+    """Depth of field asked for by the blur it makes (``--blur``), not by a strength in px·scene unit.
+
+    Attributes:
+        radius: blur radius, pixels at the camera's reference width (``percent``: % of the image width).
+        percent: ``radius`` is a percentage of the image width.
+        depth: camera depth (scene units, may be inf) that gets this blur; None: the largest blur in
+            view, at the nearest or farthest depth in view.
+    """
+
+    radius: float
+    percent: bool = False
+    depth: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.radius) and self.radius >= 0):
+            raise DofviewError(f"blur radius must be a finite number ≥ 0, got {self.radius}")
+        if self.depth is not None and not self.depth > 0:
+            raise DofviewError(f"the depth of a blur must be > 0, got {self.depth}")
+
+    def __str__(self) -> str:
+        depth = "" if self.depth is None else f"@{self.depth:g}"
+        return f"{self.radius:g}{'%' if self.percent else ''}{depth}"
+
+    def radius_px(self, width: int, ref_width: int) -> float:
+        """The radius in pixels on an image ``width`` wide whose reference width is ``ref_width``."""
+        return self.radius / 100.0 * width if self.percent else self.radius * width / ref_width
+
+    def aperture(self, width: int, ref_width: int, focus: float,
+                 span: tuple[float, float] | None) -> float:
+        """Aperture strength A (px·scene unit) on an image ``width`` wide, for focus ``focus``;
+        ``span`` = (near, far) depths in view (scene units), needed when :attr:`depth` is None."""
+        radius = self.radius_px(width, ref_width)
+        if self.depth is not None:
+            return aperture_at_depth(radius, focus, self.depth)
+        if span is None:
+            raise DofviewError(f"--blur {self}: nothing in view to measure the largest blur on; "
+                               "name a depth (--blur R@DEPTH) or give --aperture")
+        return aperture_for_blur(radius, focus, *span)
+
+
 def exposure_from_ev(ev: float) -> float:
     """Linear exposure multiplier 2^EV."""
     if not math.isfinite(ev):

@@ -10,19 +10,20 @@ import argparse
 import math
 import shlex
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
-from dofview.camera import Camera, look_at
+from dofview.camera import REFERENCE_WIDTH, Camera, look_at
 from dofview.errors import DofviewError
 from dofview.frame import CUT_MODES, KERNELS, OPACITY_NORMS, RenderSettings
-from dofview.framing import UP_AXES, UpGuess, guess_up, overview_camera
+from dofview.framing import UP_AXES, UpGuess, count_in_view, guess_up, overview_camera
 from dofview.io.cameras import load_cameras_json, select_camera
 from dofview.io.spz import AXES as SPZ_AXES
-from dofview.lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
+from dofview.lens import BlurSpec, Lens, PhysicalLens, exposure_from_shutter
 from dofview.rendering import AUTO_ORDER, BACKENDS
 from dofview.scene import COLOUR_SPACES, GaussianScene
-from dofview.tonemap import Tonemap
+from dofview.tonemap import Tonemap, default_operator
 
 RASTERS: tuple[str, ...] = ("auto", *BACKENDS)
 
@@ -94,6 +95,21 @@ def focus_or_pull(text: str) -> float | str | tuple:
     return focus_value(near), focus_value(far)
 
 
+def blur_value(text: str) -> BlurSpec:
+    """``--blur``: ``R`` (pixels at the camera's reference width), ``R%`` (of the image width), each
+    optionally ``@DEPTH`` (scene units or inf: the blur of that depth; default the largest in view)."""
+    radius, sep, depth = text.partition("@")
+    percent = radius.endswith("%")
+    what = "--blur: a blur radius such as 4 (pixels), 0.5% (of the image width) or 4@inf (at a depth)"
+    r = number(0.0, None, hi_open=False, what="blur radius")(radius[:-1] if percent else radius)
+    if not sep:
+        return BlurSpec(r, percent)
+    if not depth:
+        raise argparse.ArgumentTypeError(f"{what}; got {text!r}")
+    d = math.inf if depth in ("inf", "infinity") else number(0.0, None, lo_open=True, what="blur depth")(depth)
+    return BlurSpec(r, percent, d)
+
+
 def tau_value(text: str) -> float:
     """τ as a number or a fraction such as 2/255."""
     num, _, den = text.partition("/")
@@ -145,14 +161,22 @@ def add_lens_args(p: argparse.ArgumentParser, focus_pull: bool = False) -> None:
     g.add_argument("--focus", type=focus_or_pull if focus_pull else focus_value, default="auto",
                    help="focus distance (camera depth, scene units), 'inf', or 'auto' = median depth under the image "
                         "centre (default)" + ("; A:B pulls focus from A to B over --frames" if focus_pull else ""))
-    g.add_argument("--aperture", type=number(0, None, hi_open=False, what="aperture"), help="aperture strength A, px·scene unit: CoC radius R = A/2·|1/z − 1/d_f| (default 0 = pinhole)")
+    g.add_argument("--aperture", type=number(0, None, hi_open=False, what="aperture"),
+                   help="aperture strength A, px·scene unit, at the camera's reference width: CoC radius "
+                        "R = A/2·|1/z − 1/d_f| there (default 0 = pinhole). The reference width is a cameras.json "
+                        f"view's own width, else {REFERENCE_WIDTH} px (--eye/--target, automatic framing); at "
+                        "another --width A scales with it, so the picture is the same, scaled")
+    g.add_argument("--blur", type=blur_value, metavar="R[%][@DEPTH]",
+                   help="depth of field by the blur it makes: the largest blur in view (2nd–98th percentile depths "
+                        "of a pinhole pass) has radius R px at the reference width, or R%% of the image width; "
+                        "R@DEPTH gives that blur to camera depth DEPTH (e.g. 6@inf: the far background)")
     g.add_argument("--fnumber", type=number(0, None, lo_open=True, what="f-number"), help="physical lens: f-number N (with --focal-mm)")
     g.add_argument("--focal-mm", type=number(0, None, lo_open=True, what="focal length"), help="physical lens: focal length in mm")
     g.add_argument("--sensor-mm", type=number(0, None, lo_open=True, what="sensor width"), default=36.0, help="physical lens: sensor width in mm (default 36)")
     g.add_argument("--units-per-metre", "--units-per-meter", type=number(0, None, lo_open=True, what="units per metre"), default=1.0, help="physical lens: scene units per metre (default 1)")
     g = p.add_argument_group("image")
     g.add_argument("--exposure", type=number(-60, 60, hi_open=False, what="exposure"), default=0.0, help="exposure in EV stops, multiplier 2^EV (default 0)")
-    g.add_argument("--shutter", type=number(0, None, lo_open=True, what="shutter time"), help="exposure time t in seconds: exposure = t/N² with --fnumber (Eq. 7), instead of --exposure")
+    g.add_argument("--shutter", type=number(0, None, lo_open=True, what="shutter time"), help="exposure time t in seconds: with --fnumber N, exposure log2(t/N²) EV (the factor t/N² of Eq. 7), instead of --exposure")
     g.add_argument("--gamma", type=number(0, None, lo_open=True, what="gamma"), default=2.2, help="display gamma (default 2.2)")
     g.add_argument("--background", type=colour, default=(0.0, 0.0, 0.0), help="display background r,g,b in [0,1] (PNG only; default black)")
     add_tonemap_args(g)
@@ -195,7 +219,8 @@ def camera_from_args(args: argparse.Namespace, scene: GaussianScene, default_siz
         cam = select_camera(load_cameras_json(args.cameras), args.view, str(args.cameras))
         w = args.width or (round(cam.width * args.height / cam.height) if args.height else cam.width)
         h = args.height or (round(cam.height * args.width / cam.width) if args.width else cam.height)
-        return cam.resized(w, h)
+        what = f"camera {cam.name or args.view!r} of {Path(args.cameras).absolute()}"
+        return _check_seen(args, scene, cam.resized(w, h), what)
     dw, dh = default_size
     w = args.width or (round(dw * args.height / dh) if args.height else dw)
     h = args.height or (round(dh * args.width / dw) if args.width else dh)
@@ -203,8 +228,30 @@ def camera_from_args(args: argparse.Namespace, scene: GaussianScene, default_siz
     if args.eye or args.target:
         if not (args.eye and args.target):
             raise DofviewError("--eye and --target go together")
-        return look_at(args.eye, args.target, w, h, fov, UpGuess(args.up).vector if args.up else (0.0, -1.0, 0.0))
-    return overview_camera(scene, w, h, fov, up_from_args(args, scene).vector)
+        cam = look_at(args.eye, args.target, w, h, fov, UpGuess(args.up).vector if args.up else (0.0, -1.0, 0.0))
+        _check_seen(args, scene, cam, "the camera of --eye/--target")
+    else:
+        cam = overview_camera(scene, w, h, fov, up_from_args(args, scene).vector)
+    return replace(cam, ref_width=REFERENCE_WIDTH)  # no size of its own: --aperture holds at the default width
+
+
+def _check_seen(args: argparse.Namespace, scene: GaussianScene, cam: Camera, what: str) -> Camera:
+    """``cam``, the camera the user chose (``what``, in words), when it sees some of the scene. One that
+    sees none of it is refused where ``--focus auto`` would have nothing to focus on, else noted: the
+    image it makes is empty, and the user is told why rather than given a black picture.
+
+    Raises:
+        DofviewError: ``cam`` sees no Gaussian and the focus is automatic.
+    """
+    if count_in_view(scene, cam, getattr(args, "near", 0.01)) > 0:
+        return cam
+    line = f"{what} sees none of the {scene.count:,} Gaussians of {args.scene}"
+    focus = getattr(args, "focus", None)
+    if "auto" in (focus if isinstance(focus, tuple) else (focus,)):
+        raise DofviewError(f"{line}: nothing in view to focus on; choose another view (--view, --eye/--target), "
+                           "or give --focus to render the empty view")
+    note(args, f"dofview: warning: {line}: the image is empty")
+    return cam
 
 
 def up_from_args(args: argparse.Namespace, scene: GaussianScene) -> UpGuess:
@@ -231,15 +278,39 @@ def say_notes(args: argparse.Namespace) -> None:
     args.notes = []
 
 
-def lens_from_args(args: argparse.Namespace, camera: Camera, focus: float) -> Lens:
+def needs_depths(args: argparse.Namespace) -> bool:
+    """Whether the lens options need the depth range in view (``--blur R`` without ``@DEPTH``)."""
+    blur = getattr(args, "blur", None)
+    return blur is not None and blur.depth is None
+
+
+def lens_from_args(args: argparse.Namespace, camera: Camera, focus: float,
+                   span: tuple[float, float] | None = None) -> Lens:
+    """The lens the options ask for on ``camera`` at ``focus`` (scene units): ``--aperture A``
+    scaled from the camera's reference width to its width, ``--blur`` resolved on ``span`` (the
+    (near, far) depths in view, scene units, from :func:`dofview.rendering.focus.depth_range`), or
+    the physical lens through the camera's f_x (which scales with the width by itself)."""
     physical = args.fnumber is not None or args.focal_mm is not None
-    if physical and args.aperture is not None:
-        raise DofviewError("give the aperture either as --aperture A or as --fnumber/--focal-mm, not both")
+    blur = getattr(args, "blur", None)
+    if sum((physical, args.aperture is not None, blur is not None)) > 1:
+        raise DofviewError("give the aperture one way: --aperture A, --blur R or --fnumber/--focal-mm")
     if physical:
         if args.fnumber is None or args.focal_mm is None:
             raise DofviewError("a physical lens needs both --fnumber and --focal-mm")
         return PhysicalLens(args.focal_mm, args.fnumber, args.sensor_mm, args.units_per_metre).lens(camera.fx, focus)
-    return Lens(focus=focus, aperture=args.aperture or 0.0)
+    if blur is not None:
+        return Lens(focus=focus, aperture=blur.aperture(camera.width, camera.ref_width, focus, span))
+    return Lens(focus=focus, aperture=camera.scaled_aperture(args.aperture or 0.0))
+
+
+def aperture_asked(args: argparse.Namespace) -> str:
+    """The lens options as given, for the EXR header (``--blur 1%``, ``--aperture 60``, …)."""
+    blur = getattr(args, "blur", None)
+    if blur is not None:
+        return f"--blur {blur}"
+    if args.fnumber is not None or args.focal_mm is not None:
+        return f"--fnumber {args.fnumber:g} --focal-mm {args.focal_mm:g}"
+    return f"--aperture {args.aperture or 0.0:g}"
 
 
 def add_tonemap_args(g) -> None:
@@ -247,10 +318,11 @@ def add_tonemap_args(g) -> None:
     parameter, --NAME-PARAM (e.g. --reinhard05-b 0.5), from the operators' dataclass fields."""
     from dataclasses import fields
 
-    from dofview.tonemap import OPERATORS
+    from dofview.tonemap import AUTO, LINEAR_DEFAULT, OPERATORS
 
-    g.add_argument("--tonemap", choices=list(OPERATORS), default="clip",
-                   help="tone-mapping operator for the PNG and the screen; the EXR stays linear (default clip = Eq. 7)")
+    g.add_argument("--tonemap", choices=[AUTO, *OPERATORS], default=AUTO,
+                   help="tone-mapping operator for the PNG and the screen; the EXR stays linear (default auto: "
+                        f"clip = Eq. 7 for an sRGB scene, {LINEAR_DEFAULT} for a linear HDR one)")
     g.add_argument("--stats", choices=("frame", "joint"), default="frame",
                    help="statistics of adaptive operators: this frame's, or pooled over all views of --cameras (default frame)")
     for name, cls in OPERATORS.items():
@@ -260,13 +332,15 @@ def add_tonemap_args(g) -> None:
                            help=f"{name}: {f.name} (default {f.default:g}; see dofview.tonemap.{cls.__module__.rsplit('.', 1)[1]})")
 
 
-def operator_from_args(args: argparse.Namespace):
-    """The --tonemap operator with its --NAME-PARAM flags; a flag for another operator is an error."""
+def operator_from_args(args: argparse.Namespace, colour_space: str = "srgb"):
+    """The --tonemap operator with its --NAME-PARAM flags (``auto``: the scene's default for
+    ``colour_space``); a flag for another operator is an error."""
     from dataclasses import fields
 
-    from dofview.tonemap import OPERATORS
+    from dofview.tonemap import AUTO, OPERATORS, default_operator
 
-    name = getattr(args, "tonemap", "clip")
+    name = getattr(args, "tonemap", AUTO)
+    name = default_operator(colour_space) if name == AUTO else name
     for other, cls in OPERATORS.items():
         given = [f.name for f in fields(cls) if getattr(args, f"tm_{other}_{f.name}", None) is not None]
         if other != name and given:
@@ -276,14 +350,15 @@ def operator_from_args(args: argparse.Namespace):
                   if getattr(args, f"tm_{name}_{f.name}", None) is not None})
 
 
-def tonemap_from_args(args: argparse.Namespace) -> Tonemap:
+def tonemap_from_args(args: argparse.Namespace, colour_space: str = "srgb") -> Tonemap:
     if args.shutter is not None:
         if args.fnumber is None:
             raise DofviewError("--shutter needs --fnumber (exposure = t/N²)")
-        exposure = exposure_from_shutter(args.shutter, args.fnumber)
+        exposure = math.log2(exposure_from_shutter(args.shutter, args.fnumber))
     else:
-        exposure = exposure_from_ev(args.exposure)
-    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background, operator=operator_from_args(args))
+        exposure = args.exposure
+    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background,
+                   operator=operator_from_args(args, colour_space))
 
 
 def stats_from_args(args: argparse.Namespace, renderer, tm: Tonemap, settings: RenderSettings):
@@ -306,7 +381,11 @@ def settings_from_args(args: argparse.Namespace) -> RenderSettings:
 
 def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings,
                         colour_space: str, out: str = "out.exr") -> str:
-    """A ``dofview render`` line that reproduces a view (used by the viewer's "copy as command")."""
+    """A ``dofview render`` line that reproduces a view (used by the viewer's "copy as command").
+
+    ``lens.aperture`` is the strength on ``camera`` as drawn; the line gives it at the reference
+    width of an --eye/--target camera, so the same line with another --width gives the same
+    picture, scaled."""
     eye = camera.centre
     target = eye + camera.forward * (lens.focus if math.isfinite(lens.focus) else 1.0)
     fov = camera.fov_x_deg
@@ -315,14 +394,15 @@ def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap
              # "--eye=…" form: argparse would take a value like "-1.5,0,2" for an option
              "--eye=" + ",".join(f"{v:.6g}" for v in eye), "--target=" + ",".join(f"{v:.6g}" for v in target),
              "--up=" + ",".join(f"{v:.6g}" for v in -camera.R[1]),  # image-up: keeps the camera's roll
-             "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}", "--aperture", f"{lens.aperture:.6g}",
-             "--exposure", f"{math.log2(tm.exposure):.6g}", "--gamma", f"{tm.gamma:.6g}",
+             "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}",
+             "--aperture", f"{lens.aperture * REFERENCE_WIDTH / camera.width:.6g}",
+             "--exposure", f"{tm.exposure:.6g}", "--gamma", f"{tm.gamma:.6g}",
              "--tau", f"{settings.tau:.6g}", "--k", f"{settings.k:.6g}", "--opacity-norm", settings.opacity_norm,
              "--cut", settings.cut, "--kernel", settings.kernel,
              "--colour-space", colour_space]
     if any(tm.background):
         parts += ["--background", ",".join(f"{c:.4g}" for c in tm.background)]
-    if tm.operator.name != "clip":
+    if tm.operator.name != default_operator(colour_space) or tm.operator.params():
         parts += ["--tonemap", tm.operator.name]
         parts += [f"--{tm.operator.name}-{k.replace('_', '-')}={v:.6g}" for k, v in tm.operator.params().items()]
     if settings.blend_linear:

@@ -1,7 +1,9 @@
 """A small progress bar on stderr for long work (loading big scenes, benchmarks, training, batches).
 
 It stays silent for work that finishes within ``delay`` seconds. On a terminal it redraws one line;
-into a log (CI) it prints a line at most every 10 % so logs stay short.
+into a log (CI) it prints a line at every 10 %, and at least every ``heartbeat`` seconds so a slow
+first step does not look like a hang. Both show the elapsed time and the time left (ETA: the
+elapsed time scaled by the fraction done, so steps should cost about alike).
 """
 
 from __future__ import annotations
@@ -15,13 +17,14 @@ class Progress:
     """``with Progress("loading scene.ply", total) as p: p.update(done, info="…")``."""
 
     def __init__(self, label: str, total: int, stream: TextIO | None = None, delay: float = 0.5,
-                 unit: str = "") -> None:
+                 unit: str = "", heartbeat: float = 15.0) -> None:
         self.label, self.total, self.unit = label, max(int(total), 1), unit
         self.stream = stream or sys.stderr
-        self.delay = delay
+        self.delay, self.heartbeat = delay, heartbeat
         self.start = time.perf_counter()
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self._last_decile = -1
+        self._last_line = -float("inf")
         self._shown = False
         self.done = 0
 
@@ -37,18 +40,20 @@ class Progress:
         if elapsed < self.delay and done < self.total:
             return
         frac = min(done / self.total, 1.0)
+        eta = f"eta {clock(elapsed / frac - elapsed)}" if frac > 0 else "eta ?"
         if self.tty:
             bar = "█" * int(frac * 24) + "·" * (24 - int(frac * 24))
-            eta = elapsed / frac - elapsed if frac > 0 else 0.0
-            line = f"\r{self.label} {bar} {done}/{self.total}{self.unit} {elapsed:5.1f}s eta {eta:5.1f}s {info}"
+            line = f"\r{self.label} {bar} {done}/{self.total}{self.unit} {clock(elapsed)} {eta} {info}"
             self.stream.write(line[:160].ljust(100))
             self.stream.flush()
             self._shown = True
         else:
             decile = int(frac * 10)
-            if decile > self._last_decile and (self._shown or elapsed >= self.delay):
-                self._last_decile = decile
-                self.stream.write(f"{self.label}: {done}/{self.total}{self.unit} ({frac:.0%}, {elapsed:.1f}s) {info}\n")
+            due = decile > self._last_decile or elapsed - self._last_line >= self.heartbeat
+            if due and (self._shown or elapsed >= self.delay):
+                self._last_decile, self._last_line = decile, elapsed
+                self.stream.write(f"{self.label}: {done}/{self.total}{self.unit} ({frac:.0%}, {clock(elapsed)}, "
+                                  f"{eta}) {info}\n")
                 self.stream.flush()
                 self._shown = True
 
@@ -62,3 +67,11 @@ class Progress:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def clock(seconds: float) -> str:
+    """A duration for a progress line: ``4.2s`` under a minute, else ``3m05s`` (or ``1h02m``)."""
+    if seconds < 60:
+        return f"{seconds:.1f}s"
+    m, s = divmod(round(seconds), 60)
+    return f"{m}m{s:02d}s" if m < 60 else f"{m // 60}h{m % 60:02d}m"

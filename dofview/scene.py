@@ -15,6 +15,9 @@ import numpy as np
 SH_C0 = 0.28209479177387814
 ColourSpace = Literal["srgb", "linear"]
 COLOUR_SPACES: tuple[str, ...] = ("srgb", "linear")
+VISIBLE_OPACITY = 1.0 / 255.0
+"""The least opacity at which a Gaussian alone moves an 8-bit pixel by one level (and the default
+τ keeps it): a scene with none this opaque draws an empty image."""
 
 
 def sh_coeff_count(degree: int) -> int:
@@ -77,6 +80,17 @@ class GaussianScene:
         if self.sh_rest is None:
             return 0
         return {4: 1, 9: 2, 16: 3}[self.sh_rest.shape[1] + 1]
+
+    def nothing_to_draw(self) -> str | None:
+        """Why no Gaussian of the scene can show (there is none, or none reaches
+        :data:`VISIBLE_OPACITY`), in words; None when one can."""
+        if self.count == 0:
+            return "no drawable Gaussian: the scene holds none"
+        top = float(self.opacities.max())
+        if not top >= VISIBLE_OPACITY:
+            return (f"no drawable Gaussian: all {self.count:,} are transparent "
+                    f"(the most opaque has opacity {top:.3g}, below 1/255)")
+        return None
 
     def base_colour(self) -> np.ndarray:
         """(N, 3) float32: the view-independent colour max(SH_C0·dc + 0.5, 0)."""

@@ -8,6 +8,7 @@ together from the finished frames.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass, replace
@@ -16,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from dofview.api import save_render
+from dofview.api import exr_header, save_render
 from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
@@ -29,6 +30,8 @@ from dofview.tonemap import Tonemap, display, to_uint8
 from dofview.tonemap.stats import Stats, StatsSmoother
 
 _FRAME_NUMBER = re.compile(r"%0?\d*d")
+# what a finished frame's header must agree on with the command for --resume to keep it
+RECORDED = ("camera", "lens", "render", "exposure", "gamma", "tonemap", "frames")
 VIDEO_FORMATS = {".mp4": "mp4", ".mov": "mov", ".mkv": "matroska"}
 
 
@@ -91,8 +94,10 @@ class Shot:
 
 # ---- output names --------------------------------------------------------------------------------
 def frame_name(pattern: Path, index: int) -> Path:
-    """The file of frame ``index``: ``pattern`` with its ``%04d`` (printf style) filled in."""
-    return Path(str(pattern) % index)
+    """The file of frame ``index``: ``pattern`` with its ``%04d`` (printf style) filled in; a name
+    without a frame number (a one-frame shot) is that file."""
+    text = str(pattern)
+    return Path(text % index) if _FRAME_NUMBER.search(text) else Path(pattern)
 
 
 def check_pattern(pattern: Path, what: str) -> None:
@@ -117,7 +122,7 @@ class Outputs:
 
 def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[Camera, float], Lens],
                     tm: Tonemap, settings: RenderSettings, scene_path: str, out: Outputs,
-                    frames: range, resume: bool = False, lens_info: dict | None = None, log=print,
+                    frames: range, resume: bool = False, lens_info: dict[str, object] | None = None, log=print,
                     stats: Stats | None = None, lens_samples: int = 0) -> int:
     """Render the shots whose index is in ``frames`` to ``out``; returns how many were rendered.
 
@@ -128,28 +133,87 @@ def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[C
 
     Each EXR carries its frame's camera, focus and aperture (api.exr_header) and
     ``dofview:frame``/``dofview:frames``. With ``resume``, frames whose files all exist are skipped
-    (files are written whole or not at all, so an existing one is complete). The video, when asked
-    for, is made from every frame of the shot, rendered now or found on disk.
+    (files are written whole or not at all, so an existing one is complete) when their header
+    records the camera, lens and settings this command gives them (:func:`stale_setting`); the
+    others are rendered again, and the summary line says how many. The video, when asked for, is
+    made from every frame of the shot, rendered now or found on disk.
     """
     total = len(shots)
     todo = [s for s in shots if s.index in frames]
-    rendered = 0
+    rendered, stale = 0, {}
     smoother = StatsSmoother() if stats is None and tm.operator.adaptive else None
     with Progress(f"rendering {len(todo)} frames", len(todo), unit=" frames") as bar:
         for n, shot in enumerate(todo):
             exr, png = frame_name(out.exr, shot.index), out.png and frame_name(out.png, shot.index)
-            if not (resume and exr.is_file() and (png is None or png.is_file())):
-                lens = lens_for(shot.camera, shot.focus)
+            lens = lens_for(shot.camera, shot.focus)
+            frame_keys = {"dofview:frame": shot.index, "dofview:frames": total}
+            there, changed = resume and exr.is_file() and (png is None or png.is_file()), None
+            if there:
+                expected = {**exr_header(shot.camera, lens, tm, settings, renderer.scene.colour_space, scene_path,
+                                         lens_info), **frame_keys}
+                changed = stale_setting(exr, expected, lens_samples)
+                if changed is not None:
+                    stale[changed] = stale.get(changed, 0) + 1
+            if not there or changed is not None:
                 save_render(renderer, shot.camera, lens, tm, settings, scene_path, exr, png, half=out.half,
-                            lens_info=lens_info, header={"dofview:frame": shot.index, "dofview:frames": total},
+                            lens_info=lens_info, header=frame_keys,
                             stats=stats, smoother=smoother, dt=1.0 / out.fps, lens_samples=lens_samples)
                 rendered += 1
             bar.update(n + 1, info=exr.name)
     if out.video is not None:
         write_video(out, [s.index for s in shots], renderer.scene.colour_space == "srgb", tm)
-    log(f"{out.exr}: frames {frames.start}–{frames.stop - 1} of {total}: {rendered} rendered, "
+    redone = (f" ({sum(stale.values())} of them again: their recorded "
+              + ", ".join(f"{key} ({count})" for key, count in stale.items()) + " differed from this command)"
+              if stale else "")
+    log(f"{out.exr}: frames {frames.start}–{frames.stop - 1} of {total}: {rendered} rendered{redone}, "
         f"{len(todo) - rendered} already there" + (f"; {out.video}" if out.video else ""))
     return rendered
+
+
+def stale_setting(exr: Path, expected: dict[str, object], lens_samples: int) -> str | None:
+    """What a finished frame's EXR header records differently from ``expected`` (api.exr_header of
+    the frame this command would render): the first differing name of :data:`RECORDED`,
+    "lens_samples" or "scene"; "header" when the file cannot be read; None when it agrees.
+
+    Numbers agree to a relative 1e-5 (EXR stores float attributes in single precision, and an
+    auto focus may differ in its last digits on another machine of a farm)."""
+    from dofview.io.exr import read_exr
+
+    try:
+        _, header = read_exr(exr)
+    except DofviewError:
+        return "header"
+    for name in RECORDED:
+        key = f"dofview:{name}"
+        if not _same(_parsed(header.get(key)), _parsed(expected.get(key))):
+            return name
+    if int(header.get("dofview:lens_samples", 0)) != lens_samples:
+        return "lens_samples"
+    recorded_scene = header.get("dofview:scene")
+    if recorded_scene is None or Path(str(recorded_scene)).resolve() != Path(str(expected["dofview:scene"])).resolve():
+        return "scene"
+    return None
+
+
+def _parsed(value: object) -> object:
+    """A header value with its JSON strings read."""
+    if isinstance(value, str) and value[:1] in "{[":
+        try:
+            return json.loads(value)
+        except ValueError:
+            return value
+    return value
+
+
+def _same(a: object, b: object) -> bool:
+    """Equal, numbers to a relative 1e-5, through dicts and lists."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool) and not isinstance(b, bool):
+        return math.isclose(a, b, rel_tol=1e-5, abs_tol=1e-9)
+    return a == b
 
 
 def _finished_image(out: Outputs, index: int, encoded: bool, tm: Tonemap) -> np.ndarray:
@@ -166,7 +230,7 @@ def _finished_image(out: Outputs, index: int, encoded: bool, tm: Tonemap) -> np.
         raise DofviewError(f"{exr}: frame {index} is missing; render every frame (or --resume) before --video")
     channels, _ = read_exr(exr)
     rgba = np.stack([channels[c] for c in "RGBA"], -1).astype(np.float32)
-    return to_uint8(display(rgba, encoded, replace(tm, exposure=1.0)))  # the EXR is already exposed
+    return to_uint8(display(rgba, encoded, replace(tm, exposure=0.0)))  # the EXR is already exposed
 
 
 def check_video(path: Path) -> str:

@@ -1,8 +1,9 @@
-"""docs/images/framing_shared.png: the shared real scenes opened without cameras, before and after
+"""docs/images/framing_shared.png: the scenes of tests/data opened without cameras, before and after
 issue 13 (top: the old framing, +z through the unweighted 2–98 % box with world up −y; bottom:
-dofview.framing's weighted box, guessed up and 20° elevation), pinhole, focus auto.
+dofview.framing's weighted box, guessed up and 20° elevation; a scene that surrounds its centre is
+seen from inside, issue 22), pinhole, focus auto; the last column is dofview.bench.synth.room_scene.
 
-    python scripts/framing_figure.py [--scenes ../shared/scenes] [--out docs/images/framing_shared.png]
+    python scripts/framing_figure.py [--scenes tests/data] [--out docs/images/framing_shared.png]
 
 Prints, per scene, the guessed up and the coverage's α-weighted centroid offset from the image
 centre (fraction of the image size) and the extent of its α > 0.5 pixels (fraction, 2–98 %).
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dofview.bench.synth import room_scene
 from dofview.camera import framing_camera
 from dofview.framing import guess_up, overview_camera
 from dofview.io import load_scene
@@ -23,7 +25,7 @@ from dofview.lens import Lens
 from dofview.rendering.focus import auto_focus
 from dofview.rendering.quads import QuadBackend
 
-SCENES = ("two_planes.ply", "burger.ply", "guitar.compressed.ply", "biker.spz", "tap.spz")
+SCENES = ("two_planes.ply", "burger.ply", "guitar.compressed.ply", "biker.spz", "tap.spz", "room")
 SIZE = (240, 180)
 
 
@@ -40,12 +42,12 @@ def placement(alpha: np.ndarray) -> tuple[float, float, float]:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "scenes")
+    p.add_argument("--scenes", type=Path, default=Path(__file__).resolve().parents[1] / "tests" / "data")
     p.add_argument("--out", type=Path, default=Path("docs/images/framing_shared.png"))
     args = p.parse_args()
     rows: list[list[np.ndarray]] = [[], []]
     for name in SCENES:
-        scene = load_scene(args.scenes / name, progress=False)
+        scene = room_scene() if name == "room" else load_scene(args.scenes / name, progress=False)
         guess = guess_up(scene)
         renderer = QuadBackend(scene)
         for row, cam in enumerate((framing_camera(scene, *SIZE), overview_camera(scene, *SIZE, up=guess.vector))):

@@ -40,7 +40,7 @@ def best_ev(frame, operator) -> float:
     from dofview.tonemap.stats import clipped_crushed
 
     def cost(ev):
-        tm = Tonemap(exposure=2.0 ** ev, operator=operator)
+        tm = Tonemap(exposure=ev, operator=operator)
         return sum(clipped_crushed(to_uint8(display(frame.rgba, frame.encoded, tm)), frame.alpha))
 
     return min(np.arange(8.0, -8.01, -0.25), key=cost)  # ties: the brightest
@@ -60,7 +60,7 @@ def rows_for(scene_path: Path):
     rows = []
     for name, cls in OPERATORS.items():
         e = 0.0 if cls.adaptive else best_ev(frame, cls())
-        img = r.display_image(Tonemap(exposure=2.0 ** e, operator=cls()))
+        img = r.display_image(Tonemap(exposure=e, operator=cls()))
         rows.append((f"{name} ({'auto' if cls.adaptive else f'{e:+g} EV'})", img, clipped_crushed(img, frame.alpha)))
     r.release()
     return rows

@@ -1,8 +1,8 @@
-"""Inria-style run folders for tests, built from the shared real scenes with cameras the test chooses."""
+"""The scene files the tests read (tests/data, described in tests/data/README.md) and Inria-style run
+folders built from them with cameras the test chooses."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +12,7 @@ from dofview.framing import robust_box
 from dofview.io import load_scene
 from dofview.io.cameras import save_cameras_json
 
-SCENES = Path(os.environ.get("DOFVIEW_SHARED_SCENES", Path(__file__).resolve().parents[2] / "shared" / "scenes"))
+SCENES = Path(__file__).resolve().parent / "data"  # the repository's own copies: tests read nothing beside it
 TWO_PLANES = SCENES / "two_planes.ply"
 BURGER = SCENES / "burger.ply"
 

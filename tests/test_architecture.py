@@ -83,7 +83,7 @@ def test_cli_render_is_the_api_render(tmp_path):
                  "--focus", "4", "--aperture", "60", "--raster", "quad", "-o", str(out)]) == 0
     channels, header = read_exr(out)
     frame = dofview.render(dofview.load(cards), dofview.load_cameras(cams)[2].resized(96, 72),
-                           dofview.Lens(4.0, 60.0), raster="quad")
+                           dofview.Lens(4.0, 60.0 * 96 / 800), raster="quad")  # --aperture holds at the view's 800 px
     rgba = np.stack([channels[c] for c in "RGBA"], axis=-1)
     assert np.array_equal(rgba, frame.rgba) and np.array_equal(channels["Z"], frame.depth)
     api_header = frame.meta

@@ -409,3 +409,101 @@ def tiny_tmpfs():
     finally:
         subprocess.run(["umount", str(folder)], check=True)
         folder.rmdir()
+
+
+# ---- scenes with nothing to draw, cameras that see nothing (issue 22) --------------------------------
+def _ply_of(scene, path: Path) -> Path:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DofviewWarning)
+        write_ply(scene, path)
+    return path
+
+
+@pytest.mark.parametrize("spoil,needle", [
+    ("nan", "no drawable Gaussian: all 40 have NaN or infinite values"),
+    ("transparent", "no drawable Gaussian: all 40 are transparent"),
+])
+def test_a_scene_with_no_drawable_gaussian_is_a_one_line_error_for_every_command(tmp_path, capsys, spoil, needle):
+    """Was: the NaN file loaded as an empty scene, "give --focus" and, with --focus, a black image and exit 0."""
+    scene = random_scene(n=40, seed=3)
+    if spoil == "nan":
+        scene.means[:] = np.nan
+    else:
+        scene.opacities[:] = 0.0
+    (tmp_path / "in").mkdir()
+    path = _ply_of(scene, tmp_path / "in" / "bad.ply")
+    out = tmp_path / "out"
+    out.mkdir()
+    for argv in (["render", path, "-o", out / "x.exr", *VIEW],
+                 ["render", path, "-o", out / "x.exr", "--width", "24", "--height", "16"]):
+        rc, err = run_cli(capsys, *argv)
+        assert_one_line_error(rc, err, f"{path}: ", needle)
+    assert_nothing_written(out)
+    from dofview.io import load_scene
+    with pytest.raises(DofviewError, match=needle):  # the API, the viewer's loader and bench read through it
+        load_scene(path, progress=False)
+
+
+def test_a_camera_that_sees_none_of_the_scene_says_so(tmp_path, capsys, good_ply):
+    """cameras.json view 0 looks away from the scene: the error names the view, the cameras file in
+    full and that none of the scene's Gaussians is in view, not "give --focus"; with --focus the
+    empty image is written and a warning says why it is empty."""
+    cams = tmp_path / "in" / "cameras.json"
+    save_cameras_json([look_at([0, 0, 0], [0, 0, -5], 24, 16)], cams)  # the scene is around z = +5
+    out = tmp_path / "out"
+    out.mkdir()
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out / "x.exr", "--cameras", cams)
+    line = assert_one_line_error(rc, err, f"camera 'view_000' of {cams.absolute()} sees none of the 60 Gaussians "
+                                          f"of {good_ply}")
+    assert "give --focus to render the empty view" in line
+    assert_nothing_written(out)
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out / "x.exr", "--eye", "0,0,0", "--target", "0,0,-5",
+                      "--width", "24", "--height", "16")
+    assert_one_line_error(rc, err, "the camera of --eye/--target sees none of the 60 Gaussians")
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out / "x.exr", "--cameras", cams, "--focus", "5")
+    assert rc == 0
+    assert (f"dofview: warning: camera 'view_000' of {cams.absolute()} sees none of the 60 Gaussians of "
+            f"{good_ply}: the image is empty") in err.splitlines()
+    channels, _ = read_exr(out / "x.exr")
+    assert channels["A"].max() == 0.0  # the warning is right: nothing was drawn
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out / "y.exr", "--eye", "0,0,0", "--target", "0,0,5",
+                      "--width", "24", "--height", "16")
+    assert rc == 0 and "sees none" not in err  # a camera that sees the scene is not warned about
+
+
+# ---- every output path is checked before anything is rendered (issue 22) --------------------------------
+@pytest.mark.parametrize("png,needle", [
+    ("x.jpg", "--png must name a .png file"),
+    ("nope/x.png", "does not exist"),
+    ("taken.png", "is a folder, not a file name"),
+])
+def test_bad_png_path_leaves_no_exr_behind(tmp_path, capsys, good_ply, png, needle):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "taken.png").mkdir()
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out / "x.exr", "--png", out / png, *VIEW)
+    assert_one_line_error(rc, err, f"{out / png}:", needle)
+    assert_nothing_written(out, keep=["taken.png"])
+
+
+def test_bad_sequence_png_path_leaves_no_frame_behind(tmp_path, capsys, good_ply):
+    out = tmp_path / "out"
+    out.mkdir()
+    png = out / "nope" / "f_%04d.png"
+    rc, err = run_cli(capsys, "render", good_ply, "--frames", "3", "--focus", "2:8", "-o", out / "f_%04d.exr",
+                      "--png", png, *VIEW[:4])
+    assert_one_line_error(rc, err, f"{png}:", f"folder {out / 'nope'} does not exist")
+    assert_nothing_written(out)
+
+
+def test_read_only_png_folder_leaves_no_exr_behind(tmp_path, good_ply, unprivileged):
+    out, ro = tmp_path / "out", tmp_path / "ro"
+    out.mkdir()
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        p = unprivileged(DOFVIEW, "render", good_ply, "-o", out / "x.exr", "--png", ro / "x.png", *VIEW)
+        assert_one_line_error(p.returncode, p.stderr, f"{ro / 'x.png'}:", "Permission denied")
+        assert_nothing_written(out)
+    finally:
+        ro.chmod(0o755)

@@ -116,6 +116,8 @@ def test_quick_run_writes_every_output(quick_run):
     for heading in ("## Frame time, A × τ", "## Targets", "## Error against the thin-lens reference",
                     "### k × opacity normalisation", "### τ: error added", "### Blend colour space", "## Scaling"):
         assert heading in report
+    targets = report.split("## Targets")[1].split("\n## ")[0].strip().splitlines()
+    assert targets and all(t.startswith("- ") and ("**met**" in t or "**missed**" in t) for t in targets)
     assert not list(quick_run.glob(".*.part"))  # nothing half-written left behind
 
 
@@ -126,7 +128,9 @@ def test_timing_table_has_every_setting(quick_run):
     for col in ("wall_med_ms", "wall_p90_ms", "gpu_med_ms", "gpu_p90_ms", "sort_ms", "drawn", "quad_fragments"):
         assert col in rows[0]
     grid = {(float(r["aperture"]), float(r["tau_255"])) for r in rows if r["focus"] == rows[0]["focus"]}
-    assert {(a, round(t * 255, 3)) for a in QUICK["grid_apertures"] for t in QUICK["taus"]} <= grid
+    studied = {float(r["aperture"]) for r in _rows(quick_run / "error.csv")}
+    assert len(studied) == len(QUICK["blur"])  # chosen from the scene, one per blur radius
+    assert {(a, round(t * 255, 3)) for a in {0.0, *studied} for t in QUICK["taus"]} <= grid
     for r in rows:
         assert float(r["wall_p90_ms"]) >= float(r["wall_med_ms"]) > 0
     assert len({r["focus"] for r in rows}) == 2  # both focus distances timed
@@ -181,3 +185,92 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["bench", str(SAMPLES / "cards.ply"), "--apertures", "ten"])
     assert e.value.code == 2
+    capsys.readouterr()
+    rc = main(["bench", str(SAMPLES / "cards.ply"), "--quick", "--blur", "4", "--apertures", "10", "--out",
+               str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--blur" in err and "--apertures" in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
+
+
+# ---- apertures from the scene, progress, targets ------------------------------------------------------------
+def _scaled_copy(path: Path, factor: float, out: Path) -> Path:
+    """The scene at ``path`` with every length × ``factor`` (means and scales), as a PLY without cameras."""
+    from dataclasses import replace
+
+    from dofview.io import load_scene
+    from dofview.io.ply import write_ply
+
+    s = load_scene(path, progress=False)
+    write_ply(replace(s, means=s.means * factor, scales=s.scales * factor), out)
+    return out
+
+
+def test_default_apertures_give_the_same_blur_in_pixels_whatever_the_units(tmp_path, capsys):
+    """A scene 100× larger gets apertures 100× larger (A is px·scene unit) and so the same blur in px;
+    fixed default apertures would blur one of them not at all."""
+    tiny = ["--quick", "--no-scaling", "--width", "48", "--ref-samples", "8", "--acc-samples", "2", "--frames", "1",
+            "--ks", "0.25", "--norms", "energy", "--taus", "0"]
+    apertures, reports = {}, {}
+    for factor in (1.0, 100.0):
+        scene = _scaled_copy(SAMPLES / "cards.ply", factor, tmp_path / f"cards_x{factor:g}.ply")
+        out = tmp_path / f"out_x{factor:g}"
+        assert main(["bench", str(scene), *tiny, "--out", str(out)]) == 0
+        apertures[factor] = sorted({float(r["aperture"]) for r in _rows(out / "error.csv")})
+        reports[factor] = (out / "report.md").read_text()
+    assert len(apertures[1.0]) == 1 and apertures[1.0][0] > 0
+    assert apertures[100.0][0] == pytest.approx(100.0 * apertures[1.0][0], rel=1e-3)
+    for text in reports.values():  # --quick's blur: 8 px, whatever the scene's unit
+        assert "chosen from the scene" in text and "is 8 px" in text
+    err = capsys.readouterr().err
+    assert "eta " in err and "reference lens sample" in err  # progress names the step it is on
+    # the full run's defaults too: 4, 8, 16 px whatever the unit
+    from dofview.bench.variants import BenchConfig
+
+    metres, cm = (BenchConfig().with_apertures(320, 3.0 * f, (2.0 * f, 14.0 * f)) for f in (1.0, 100.0))
+    assert len(metres.apertures) == 3 and metres.grid_apertures == (0.0, *metres.apertures)
+    assert cm.apertures == pytest.approx([100.0 * a for a in metres.apertures])
+
+
+def test_progress_shows_an_eta_and_keeps_logging(monkeypatch):
+    import io
+
+    from dofview import progress
+
+    now = [0.0]
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: now[0])
+    out = io.StringIO()  # not a terminal: log lines
+    p = progress.Progress("work", 100, stream=out, delay=0.0, heartbeat=20.0)
+    now[0] = 10.0
+    p.update(25, info="step")
+    assert out.getvalue() == "work: 25/100 (25%, 10.0s, eta 30.0s) step\n"
+    now[0] = 25.0
+    p.update(26)  # same decile, 15 s later: no line yet
+    now[0] = 31.0
+    p.update(27)  # 21 s since the last line: a heartbeat line
+    now[0] = 200.0
+    p.update(50)
+    lines = out.getvalue().splitlines()
+    assert lines[1].startswith("work: 27/100 (27%, 31.0s, eta 1m24s)")
+    assert lines[2].startswith("work: 50/100 (50%, 3m20s, eta 3m20s)") and len(lines) == 3
+
+
+def test_target_lines_say_met_or_missed():
+    from dofview.bench.report import target_lines
+    from dofview.bench.variants import BenchConfig
+    from dofview.frame import RenderSettings
+
+    base = RenderSettings()
+    cfg = BenchConfig(apertures=(30.0,), grid_apertures=(0.0, 30.0), taus=(0.0, base.tau))
+    cols = {"tau": base.tau, "k": base.k, "opacity_norm": base.opacity_norm, "blend_linear": base.blend_linear}
+    errs = [{"aperture": 30.0, "method": "single-pass", "samples": 1, **cols, "psnr": 30.0, "psnr_physical": 24.0,
+             "time_ms": 10.0}]
+    errs += [{"aperture": 30.0, "method": "accumulation", "samples": n, **cols, "psnr": p, "psnr_physical": p,
+              "time_ms": 8.0 * n} for n, p in ((4, 25.0), (16, 31.0))]
+    result = {"config": cfg, "base": base, "error": errs, "blur_px": {0.0: 0.0, 30.0: 6.0}}
+    lines = target_lines(result, np.array([[1.0, 1.0], [2.5, 1.2]]))
+    assert len(lines) == 4
+    assert "1.10×" in lines[0] and "**missed**, 1.20×" in lines[0] and "6 px" in lines[0]
+    assert "≤ 3×" in lines[1] and "**met**, 2.50×" in lines[1]
+    assert "physical" in lines[2] and "**missed**" in lines[2] and "4 samples" in lines[2]   # 24 dB: 4 samples
+    assert "matched" in lines[3] and "**met**" in lines[3] and "16 samples, 12.8×" in lines[3]  # 30 dB: 16 at 12.8×

@@ -35,12 +35,13 @@ def test_exr_holds_linear_rgba_and_depth_and_png_is_its_tonemap(tmp_path):
     z = ch["Z"][ch["A"] > 0.99]
     assert z.min() >= 1.9 and z.max() <= synth.WALL_DEPTH * 1.01
     # The PNG is Eq. 7 of the EXR (already exposed): decode → clip → gamma, on a black background.
-    expected = to_uint8(display(rgba, encoded=True, tm=Tonemap(exposure=1.0, gamma=2.2)))
+    expected = to_uint8(display(rgba, encoded=True, tm=Tonemap(exposure=0.0, gamma=2.2)))
     assert np.abs(png.astype(int) - expected.astype(int)).max() <= 1
     cam = json.loads(header["dofview:camera"])
     lens = json.loads(header["dofview:lens"])
-    assert (cam["width"], cam["height"]) == (160, 120) and lens["focus"] == 4.0 and lens["aperture"] == 60.0
-    assert header["dofview:exposure"] == pytest.approx(2 ** 1.5)
+    # --aperture holds at the view's own width (800 px): a fifth of it on this 160 px image
+    assert (cam["width"], cam["height"]) == (160, 120) and lens["focus"] == 4.0 and lens["aperture"] == 60.0 / 5
+    assert header["dofview:exposure"] == 1.5  # EV, the unit of --exposure
     assert header["dofview:version"]
 
 
@@ -67,13 +68,15 @@ def test_physical_lens_equals_its_strength(tmp_path):
     fx = json.loads(ha["dofview:camera"])["fx"]
     f = 0.05 * 10
     assert A == pytest.approx(fx * (f / 1.4) * 2 / (2 - f))
-    b, _, _ = render(tmp_path, *common, "--aperture", repr(A), name="b")
-    np.testing.assert_array_equal(a["R"], b["R"])
+    b, hb, _ = render(tmp_path, *common, "--aperture", repr(A * 800 / 80), name="b")  # A at the view's own 800 px
+    assert json.loads(hb["dofview:lens"])["aperture"] == pytest.approx(A, rel=1e-12)
+    np.testing.assert_allclose(a["R"], b["R"], rtol=0, atol=1e-6)
 
 
 def test_hdr_sample_needs_exposure(tmp_path):
     args = [str(SAMPLES / "lamp.ply"), "--cameras", str(SAMPLES / "lamp_cameras.json"), "--width", "80",
-            "--height", "60", "--focus", "4.5", "--aperture", "20"]
+            "--height", "60", "--focus", "4.5", "--aperture", "200",  # A = 20 at 80 of the views' 800 px
+            "--tonemap", "clip"]  # Eq. 7 (a linear scene's default is adaptive)
     ch, header, png0 = render(tmp_path, *args, name="ev0")
     _, _, png_dark = render(tmp_path, *args, "--exposure", "-7", name="evm7")
     assert json.loads(header["dofview:render"])["colour_space"] == "linear"

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import assert_matches_reference, psnr, random_scene
+from inria_folder import SCENES
 
 from dofview.bench import synth
 from dofview.camera import Camera, framing_camera, look_at
@@ -26,7 +27,6 @@ from dofview.rendering.reference import project, render_reference
 from dofview.scene import GaussianScene
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
-SCENES = Path(__file__).resolve().parents[2] / "shared" / "scenes"
 CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
 
 
@@ -49,7 +49,7 @@ def test_compute_matches_quad_on_samples(name, aperture):
 
 
 @pytest.mark.parametrize("file", ["two_planes.ply", "burger.ply"])
-def test_compute_matches_quad_on_a_real_scene(file):
+def test_compute_matches_quad_on_the_data_scenes(file):
     scene = load_scene(SCENES / file, progress=False)
     cam = framing_camera(scene, 160, 120)
     focus = float(np.linalg.norm(cam.centre - scene.means.mean(0)))

@@ -1,43 +1,37 @@
-"""The mass-conserving τ cut on a real trained scene (burger.ply, made elsewhere): against the physical
-thin lens (linear-light accumulation) it beats the anchors' formulation there, the one real scene of
-five where it does (docs/BENCHMARKS.md, so it is an option, not the default), and the GL renderer
-matches the CPU reference on the scene with the default and with the conserving cut. The scenes live outside the repository (DOFVIEW_SCENES, default
-../shared/scenes); without them these tests skip and say so."""
+"""The mass-conserving τ cut on burger.ply (tests/data: a stand-in, made by tests/data/make_scenes.py,
+for a trained scene whose repository has no licence, with the original's faint splats): against the
+physical thin lens (linear-light accumulation) it beats the anchors' formulation there, as on the
+original, the one real scene of five where it does (docs/BENCHMARKS.md, so it is an option, not the
+default), and the GL renderer matches the CPU reference on the scene with the default and with the
+conserving cut."""
 
 from __future__ import annotations
 
 import argparse
 import math
-import os
 import warnings
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import assert_matches_reference
+from inria_folder import BURGER
 
 from dofview.bench.metrics import psnr
 from dofview.bench.study import study_cases, study_views
 from dofview.bench.variants import make_references
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
+from dofview.io import load_scene
 from dofview.lens import disk_peak_and_area, disk_profile, disk_support, erf
 from dofview.rendering import backend_class
 from dofview.rendering.quads import QuadBackend
 from dofview.rendering.reference import render_reference
 from dofview.tonemap import Tonemap, display
 
-SCENES = Path(os.environ.get("DOFVIEW_SCENES", Path(__file__).resolve().parents[2] / "shared" / "scenes"))
-BURGER = SCENES / "burger.ply"
-
 
 @pytest.fixture(scope="module")
 def burger():
-    if not BURGER.is_file():
-        pytest.skip(f"{BURGER} not found (set DOFVIEW_SCENES to the real scenes' folder)")
-    from dofview.io import load_scene
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return load_scene(BURGER, progress=False)
@@ -66,17 +60,18 @@ def _scores_against_the_thin_lens(scene, variants: dict[str, RenderSettings]) ->
 
 
 def test_conserving_cut_beats_the_anchor_kernels_on_burger(burger):
-    """CoC up to 12 px at 120×90, truth from 64 lens samples. Measured here 1.3 dB above the best of
-    k = 1/9, 1/4, 1 with the anchors' α ≥ 1/255 cut (1.35 dB in docs/BENCHMARKS.md); asserted with
-    a 0.4 dB margin."""
+    """CoC up to 12 px at 120×90, truth from 64 lens samples. Measured here 1.28 dB above the best of
+    k = 1/9, 1/4, 1 with the anchors' α ≥ 1/255 cut (20.68 against 19.40 dB; the original burger:
+    1.3 dB here, 1.35 dB in docs/BENCHMARKS.md); asserted with a 0.4 dB margin."""
     scores = _scores_against_the_thin_lens(burger, {"conserve": replace(ANCHOR, cut="conserve")})
     assert scores["conserve"] >= scores["best anchor"] + 0.4
 
 
 @pytest.mark.parametrize("cut", ["drop", "conserve"])
-def test_gl_matches_the_cpu_reference_on_a_real_scene(burger, cut):
+def test_gl_matches_the_cpu_reference_on_burger(burger, cut):
     """≥ 45 dB (assert_matches_reference). Hundreds of splats overlap each pixel of this small image,
-    so ~17 % of pixels have one within 1e-5 of a cut: those leave the depth check only."""
+    so 4 % (drop) and 11 % (conserve) of pixels have one within 1e-5 of a cut (the original burger:
+    10 % and 15 %): those leave the depth check only."""
     r = QuadBackend(burger, packed=False)
     cam = study_views(burger, 1, 48, 36)[0]
     case = study_cases(r, [cam], focus_pcts=(50.0,), cocs=(6.0,))[0]
@@ -89,17 +84,17 @@ def test_gl_matches_the_cpu_reference_on_a_real_scene(burger, cut):
 
 def test_disk_kernel_beats_the_anchor_kernels_on_burger(burger):
     """The disk kernel (RenderSettings.kernel "disk") against the physical thin lens, CoC up to 12 px
-    at 120×90, truth from 64 lens samples: measured here 18.97 dB against 17.38 dB for the best of
-    k = 1/9, 1/4, 1 (+1.58 dB; +0.71 dB over the 8 study cases in docs/BENCHMARKS.md). Asserted
-    with a 0.5 dB margin. It is not the default: it does not win on every real scene (the same
-    section), which the last line holds."""
+    at 120×90, truth from 64 lens samples: measured here 20.67 dB against 19.40 dB for the best of
+    k = 1/9, 1/4, 1 (+1.27 dB; the original burger: +1.58 dB here, +0.71 dB over the 8 study cases
+    in docs/BENCHMARKS.md). Asserted with a 0.5 dB margin. It is not the default: it does not win
+    on every real scene (the same section), which the last line holds."""
     scores = _scores_against_the_thin_lens(burger, {"disk": replace(RenderSettings(), kernel="disk")})
-    assert scores["disk"] >= scores["best anchor"] + 1.0
+    assert scores["disk"] >= scores["best anchor"] + 0.75
     assert RenderSettings().kernel == "gaussian"
 
 
 @pytest.mark.parametrize("backend", ["quad", "compute"])
-def test_disk_kernel_matches_the_cpu_reference_on_a_real_scene(burger, backend):
+def test_disk_kernel_matches_the_cpu_reference_on_burger(burger, backend):
     """≥ 45 dB on both GPU backends, as the Gaussian kernel above (same image, same margins)."""
     r = backend_class(backend)(burger, packed=False)
     cam = study_views(burger, 1, 48, 36)[0]

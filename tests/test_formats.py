@@ -1,5 +1,5 @@
 """Distribution formats (issue 13): Niantic .spz (v2–v4, read and write), PlayCanvas .compressed.ply
-and .sog. Checked on real files made elsewhere (/work/shared/scenes), on files made from the bundled
+and .sog. Checked on real files made elsewhere (tests/data/README.md), on files made from the bundled
 samples by the formats' own tool (PlayCanvas splat-transform, installed by scripts/setup.sh: these
 tests fail, not skip, without it), and against renders of the source .ply.
 
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import random_scene
-from inria_folder import SCENES as SHARED
+from inria_folder import SCENES as DATA
 
 import dofview
 from dofview.bench.formats import (
@@ -82,13 +82,13 @@ def _finite(scene: GaussianScene) -> bool:
     return all(np.isfinite(a).all() for a in arrays) and bool((scene.scales > 0).all())
 
 
-# ---- the shared real files ------------------------------------------------------------------------
+# ---- the real files made elsewhere (tests/data) ---------------------------------------------------
 def test_biker_spz_v4_is_upright_in_dofview_axes():
     """biker.spz (v4, zstd): 152,746 Gaussians, SH 0. Stored in the spec's RUB, so read into
     dofview's RDF the rider stands on y = 0 and rises towards −y (up is −y); taken as stored
     (``spz_axes="rdf"``) the same data is mirrored in y and z."""
     lines = []
-    scene = read_spz(SHARED / "biker.spz", report=lines.append)
+    scene = read_spz(DATA / "biker.spz", report=lines.append)
     assert scene.count == 152_746 and scene.sh_degree == 0 and _finite(scene)
     np.testing.assert_allclose(np.linalg.norm(scene.quats, axis=1), 1.0, atol=1e-5)
     y = scene.means[:, 1]
@@ -96,24 +96,24 @@ def test_biker_spz_v4_is_upright_in_dofview_axes():
     assert abs(top) < 0.05 and bottom < -2.5
     assert lines == [("biker.spz: SPZ v4, data read as RUB (the SPZ spec's default), turned into dofview's RDF; "
                       "--spz-axes rdf reads it the other way")]
-    raw = read_spz(SHARED / "biker.spz", spz_axes="rdf")
+    raw = read_spz(DATA / "biker.spz", spz_axes="rdf")
     np.testing.assert_array_equal(raw.means * [1, -1, -1], scene.means)
 
 
 def test_tap_spz_v2_gzip_with_sh3_and_antialiasing():
     with pytest.warns(DofviewWarning, match="antialiasing"):
-        scene = read_spz(SHARED / "tap.spz")
+        scene = read_spz(DATA / "tap.spz")
     assert scene.count == 132_432 and scene.sh_degree == 3 and _finite(scene)
     np.testing.assert_allclose(np.linalg.norm(scene.quats, axis=1), 1.0, atol=1e-5)
     assert np.abs(scene.sh_rest).max() <= 1.0 and (scene.sh_rest != 0).any()
 
 
 def test_guitar_compressed_ply_also_under_a_plain_ply_name(tmp_path):
-    scene = load_scene(SHARED / "guitar.compressed.ply", progress=False)
+    scene = load_scene(DATA / "guitar.compressed.ply", progress=False)
     assert scene.count == 90_854 and scene.sh_degree == 0 and _finite(scene)
     assert scene.opacities.min() >= 0 and scene.opacities.max() <= 1
     renamed = tmp_path / "guitar.ply"
-    renamed.write_bytes((SHARED / "guitar.compressed.ply").read_bytes())
+    renamed.write_bytes((DATA / "guitar.compressed.ply").read_bytes())
     again = load_scene(renamed, progress=False)  # the .ply reader sees the chunk element
     for a in ("means", "quats", "scales", "opacities", "sh_dc"):
         np.testing.assert_array_equal(getattr(again, a), getattr(scene, a))
@@ -318,7 +318,7 @@ def test_sh_sign_flips_per_degree_against_a_render():
 # ---- the command line ------------------------------------------------------------------------------
 def test_cli_renders_spz_and_says_which_axes(tmp_path, capsys):
     out = tmp_path / "b.exr"
-    argv = ["render", str(SHARED / "biker.spz"), "-o", str(out), "--width", "40", "--height", "30", "--up=-y"]
+    argv = ["render", str(DATA / "biker.spz"), "-o", str(out), "--width", "40", "--height", "30", "--up=-y"]
     assert main(argv) == 0 and out.exists()
     assert "data read as RUB (the SPZ spec's default)" in capsys.readouterr().err
     assert main(argv + ["--spz-axes", "rdf"]) == 0
@@ -335,7 +335,7 @@ def test_cli_renders_spz_and_says_which_axes(tmp_path, capsys):
 def test_cli_corrupt_files_exit_2_with_one_line(tmp_path, capsys, name, data, needle):
     path = tmp_path / name
     if data is None:  # a real file cut in half
-        source = SHARED / ("biker.spz" if name.endswith(".spz") else "guitar.compressed.ply")
+        source = DATA / ("biker.spz" if name.endswith(".spz") else "guitar.compressed.ply")
         data = source.read_bytes()[: source.stat().st_size // 2]
     path.write_bytes(data)
     code = main(["render", str(path), "-o", str(tmp_path / "x.exr"), "--width", "8", "--height", "8"])
@@ -351,10 +351,10 @@ def test_writer_refuses_what_spz_cannot_hold(tmp_path):
         write_spz(far, tmp_path / "far.spz")
     assert not (tmp_path / "far.spz").exists()
     with pytest.raises(DofviewError, match="spz_axes"):
-        read_spz(SHARED / "biker.spz", spz_axes="luf")
+        read_spz(DATA / "biker.spz", spz_axes="luf")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert read_spz(SHARED / "biker.spz", progress=None).count == 152_746
+        assert read_spz(DATA / "biker.spz", progress=None).count == 152_746
 
 
 def test_spz_lying_sizes_are_refused_before_allocating(tmp_path):
@@ -364,7 +364,7 @@ def test_spz_lying_sizes_are_refused_before_allocating(tmp_path):
 
     bomb = tmp_path / "bomb.spz"
     bomb.write_bytes(gzip.compress(struct.pack("<IIIBBBx", 0x5053474E, 3, 10, 0, 12, 0) + bytes(64 << 20), 1))
-    v4 = bytearray((SHARED / "biker.spz").read_bytes()[:4096])
+    v4 = bytearray((DATA / "biker.spz").read_bytes()[:4096])
     v4[8:12] = struct.pack("<I", 2**31 - 1)
     lying = tmp_path / "lying.spz"
     lying.write_bytes(bytes(v4))

@@ -1,5 +1,5 @@
 """Opening a scene without cameras: robust framing (floaters do not shrink the object), an up axis
-guessed and said, and a focus found on every shared real scene."""
+guessed and said, and a focus found on every scene in tests/data."""
 
 from __future__ import annotations
 
@@ -9,21 +9,24 @@ import numpy as np
 import pytest
 from inria_folder import SCENES, TWO_PLANES
 
+from dofview.bench.primitives import Parts, add_panel
+from dofview.bench.synth import room_scene
 from dofview.cli import main
 from dofview.frame import Frame
-from dofview.framing import UP_AXES, axis_vector, guess_up, overview_camera, robust_box
+from dofview.framing import UP_AXES, axis_vector, guess_up, overview_camera, robust_box, walled_axes
 from dofview.io import load_scene
 from dofview.io.exr import read_exr
+from dofview.lens import Lens
 from dofview.rendering.focus import auto_focus, depth_range
 from dofview.scene import GaussianScene, matrices_from_quats
 
-SHARED = ["two_planes.ply", "burger.ply", "guitar.compressed.ply", "biker.spz", "tap.spz"]
+SCENE_FILES = ["two_planes.ply", "burger.ply", "guitar.compressed.ply", "biker.spz", "tap.spz"]
 SIZE = (160, 120)
 MAX_CENTRE_OFFSET = 0.1  # the coverage's centroid within 10 % of the image size of its centre
 MIN_SPAN = 0.5  # the object spans half the frame's width or height, not a dot among floaters
 
 
-@pytest.mark.parametrize("name", SHARED)
+@pytest.mark.parametrize("name", SCENE_FILES)
 def test_no_camera_render_frames_the_object_and_focuses_on_it(name, tmp_path, capsys):
     path = SCENES / name
     out = tmp_path / "x.exr"
@@ -44,7 +47,7 @@ def test_no_camera_render_frames_the_object_and_focuses_on_it(name, tmp_path, ca
 
 
 def test_floaters_do_not_shrink_the_object():
-    """two_planes: a ~0.8-unit object with floaters out to ±16 units."""
+    """two_planes: a ~0.7-unit object with floaters out to ~16 units."""
     scene = load_scene(TWO_PLANES, progress=False)
     lo, hi = robust_box(scene)
     assert np.all(hi - lo < 1.0)
@@ -52,10 +55,11 @@ def test_floaters_do_not_shrink_the_object():
 
 
 @pytest.mark.parametrize("name, expected", [("biker.spz", "-y"), ("burger.ply", "-y"), ("guitar.compressed.ply", "-y"),
-                                            ("tap.spz", "-y"), ("two_planes.ply", "+x")])
+                                            ("tap.spz", "-y"), ("two_planes.ply", "-x")])
 def test_guessed_up(name, expected):
     """biker.spz and guitar are upright in −y (scenes README); burger's bun is on top in −y; the tap's
-    hose hangs along +y; two_planes (a box standing on one flat face) stands on its low-x face."""
+    hose hangs along +y; two_planes' low-x face is a box's top, its side hanging from its edge (its
+    text reads upright in −x: issue 22)."""
     guess = guess_up(load_scene(SCENES / name, progress=False))
     assert guess.label == expected, guess.reason
 
@@ -109,3 +113,52 @@ def test_guess_follows_the_scene_when_it_is_turned_z_up():
     assert np.allclose(matrices_from_quats(turned[:5]), R @ scene.rotation_matrices()[:5])
     z_up = GaussianScene(scene.means @ R.T, turned, scene.scales, scene.opacities, scene.sh_dc)
     assert guess_up(z_up).label == "+z"
+
+
+# ---- issue 22: rooms seen from inside, a scanned object's top is no ground ----------------------------
+def two_faces(side_at: float) -> GaussianScene:
+    """A face 0.7 × 0.7 units facing x at the low-x end and a side 0.3 deep facing y at y = ``side_at``
+    (0: hanging from the face's edge, the shape of the original two_planes capture: a box's top
+    and the one side the scan saw; 0.35: standing over the face's middle, a card on a board)."""
+    parts = Parts.empty()
+    add_panel(parts, 0, 0.0, {1: (0.0, 0.7), 2: (0.0, 0.7)}, (0.9, 0.9, 0.9), 0.0125)
+    add_panel(parts, 1, side_at, {0: (0.0, 0.3), 2: (0.0, 0.7)}, (0.8, 0.2, 0.2), 0.0125)
+    return parts.build("srgb", "two_faces")
+
+
+def test_a_room_is_seen_from_inside_along_its_length():
+    room = room_scene()
+    guess = guess_up(room)
+    assert guess.label == "-y", guess.reason
+    cam = overview_camera(room, *SIZE, up=guess.vector)
+    lo, hi = robust_box(room)
+    assert np.all(cam.centre > lo) and np.all(cam.centre < hi)  # inside, not outside the walls
+    assert cam.forward @ [1.0, 0.0, 0.0] > 0.999  # level, along x, the room's longest horizontal axis
+    assert -cam.R[1] @ guess.vector > 0.999  # upright
+    from dofview.rendering.quads import QuadBackend
+    renderer = QuadBackend(room)
+    frame = renderer.render(cam, Lens(1.0, 0.0))
+    renderer.release()
+    assert frame.alpha.mean() > 0.95  # walls, floor and ceiling fill the frame
+    r, g, b = frame.rgba[SIZE[1] // 2, SIZE[0] // 2, :3]
+    assert g > 3 * r and r == pytest.approx(b, rel=0.05)  # the far wall (x = +4, green) is in the middle
+    assert auto_focus(frame) == pytest.approx(4.0 - cam.centre[0], rel=0.05)
+
+
+@pytest.mark.parametrize("name", SCENE_FILES)
+def test_objects_are_still_seen_from_outside(name):
+    scene = load_scene(SCENES / name, progress=False)
+    cam = overview_camera(scene, *SIZE, up=guess_up(scene).vector)
+    lo, hi = robust_box(scene)
+    assert not (np.all(cam.centre > lo) and np.all(cam.centre < hi))
+    assert walled_axes(scene, guess_up(scene).vector) == []
+
+
+def test_the_top_of_a_scanned_box_is_no_ground():
+    """two_planes (the original capture) opened upside down: its top face, at the low-x end with
+    the side hanging from its edge, was taken for a ground (+x up). A face that carries nothing is
+    the object's top: up is towards it."""
+    guess = guess_up(two_faces(side_at=0.0))
+    assert guess.label == "-x" and "carries nothing" in guess.reason, guess.reason
+    guess = guess_up(two_faces(side_at=0.35))  # the side stands over the face's middle: it is a ground
+    assert guess.label == "+x" and "ground" in guess.reason, guess.reason

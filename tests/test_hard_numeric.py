@@ -267,8 +267,10 @@ def test_half_exr_at_extreme_exposure_clips_at_half_max(tmp_path, ev):
 
     scene_path = tmp_path / "hdr.ply"
     write_ply(hdr_scene(), scene_path)
+    # --aperture holds at the --eye/--target reference width, 800 px: 375 is A = 30 at 64 px
     common = ["render", str(scene_path), "--eye", "0,0,0", "--target", "0,0,5", "--width", "64",
-              "--height", "48", "--fov", "60", "--focus", "4", "--aperture", "30", "--exposure", str(ev)]
+              "--height", "48", "--fov", "60", "--focus", "4", "--aperture", "375", "--exposure", str(ev),
+              "--tonemap", "clip"]  # Eq. 7's clip (a linear scene's default display operator is adaptive)
     assert main([*common, "-o", str(tmp_path / "f.exr"), "--png", str(tmp_path / "f.png")]) == 0
     assert main([*common, "-o", str(tmp_path / "h.exr"), "--half"]) == 0
     full, _ = read_exr(tmp_path / "f.exr")

@@ -124,10 +124,10 @@ def test_gpu_tonemap_matches_numpy(operator, colour_space):
     scene = random_scene(seed=5, colour_space=colour_space)
     r = QuadBackend(scene)
     op = OPERATORS[operator]()
-    for tm in (Tonemap(operator=op), Tonemap(exposure=4.0, gamma=2.2, background=(0.2, 0.5, 1.0), operator=op),
-               Tonemap(exposure=0.3, gamma=1.0, operator=op)):
+    for tm in (Tonemap(operator=op), Tonemap(exposure=2.0, gamma=2.2, background=(0.2, 0.5, 1.0), operator=op),
+               Tonemap(exposure=-1.75, gamma=1.0, operator=op)):
         frame = r.render(CAM, Lens(4.0, 40.0))
-        stats = frame_stats(frame.rgba, op) if op.adaptive else None
+        stats = frame_stats(frame.rgba, op, colour_space == "srgb") if op.adaptive else None
         if op.adaptive:
             np.testing.assert_allclose(r.frame_stats(op).scalars(), stats.scalars(), atol=1e-3)
         gpu = r.display_image(tm, stats=stats).astype(int)

@@ -1,4 +1,4 @@
-"""Run folders as the Inria trainer leaves them (built from the shared real scenes): the folder or
+"""Run folders as the Inria trainer leaves them (built from tests/data's scenes): the folder or
 the .ply inside it finds cameras.json, the highest iteration wins, --iteration picks one, and
 `dofview render FOLDER` renders training view 0 at its own size."""
 
@@ -12,13 +12,14 @@ from conftest import psnr
 from inria_folder import BURGER, TWO_PLANES, make_run_folder, ring_cameras
 
 from dofview.api import render
+from dofview.camera import look_at
 from dofview.cli import main
 from dofview.errors import DofviewError
 from dofview.framing import rig_centre, rig_up, robust_box
 from dofview.io import load_scene
 from dofview.io.cameras import load_cameras_json, save_cameras_json
 from dofview.io.exr import read_exr
-from dofview.io.runfolder import find_run
+from dofview.io.runfolder import RunFolder, find_run
 from dofview.lens import Lens
 
 
@@ -47,7 +48,7 @@ def test_the_ply_inside_the_folder_finds_the_cameras_two_levels_up(run):
     ply = run / "point_cloud" / "iteration_7000" / "point_cloud.ply"
     found = find_run(ply)
     assert (found.scene, found.cameras, found.root, found.iteration) == (ply, run / "cameras.json", run, 7000)
-    beside = find_run(TWO_PLANES)  # the shared folder has no cameras.json anywhere near
+    beside = find_run(TWO_PLANES)  # tests/data has no cameras.json anywhere near
     assert beside.cameras is None and beside.root is None
     with pytest.raises(DofviewError, match="give the folder, not a file"):
         find_run(ply, 7000)
@@ -103,3 +104,36 @@ def test_a_folder_scene_passes_through(tmp_path):
     """An unbundled SOG (a folder holding meta.json) is a scene, not a run folder."""
     (tmp_path / "meta.json").write_text("{}")
     assert find_run(tmp_path).scene == tmp_path / "meta.json"
+
+
+def test_a_cameras_json_near_a_plain_scene_file_is_not_its_cameras(tmp_path, capsys):
+    """Issue 22: a cameras.json in the folder above scenes/ (or beside the file) made
+    ``dofview render scenes/x.ply`` look through someone else's view 0, at nothing. Only the run
+    folder layout, ROOT/point_cloud/iteration_N/point_cloud.ply beside ROOT/cameras.json, gives a
+    file its cameras."""
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    scene = scenes / "two_planes.ply"
+    scene.symlink_to(TWO_PLANES)
+    away = [ring_cameras(TWO_PLANES)[0]]
+    away = [look_at(away[0].centre, away[0].centre - away[0].forward, 160, 120)]  # looks away from the scene
+    for folder in (tmp_path, scenes):
+        save_cameras_json(away, folder / "cameras.json")
+    assert find_run(scene) == RunFolder(scene)
+    out = tmp_path / "x.exr"
+    assert main(["render", str(scene), "-o", str(out), "--width", "64", "--height", "48"]) == 0
+    err = capsys.readouterr().err
+    assert "cameras.json" not in err and "up axis" in err  # framed from the scene itself
+    assert read_exr(out)[0]["A"].mean() > 0.05
+    # a point_cloud.ply outside the layout (no iteration_N above it) is a plain file too
+    other = tmp_path / "point_cloud.ply"
+    other.symlink_to(TWO_PLANES)
+    assert find_run(other) == RunFolder(other)
+
+
+def test_the_cameras_file_of_a_run_is_said_in_full(run, monkeypatch, capsys, tmp_path):
+    monkeypatch.chdir(run.parent)
+    found = find_run(run.name)
+    assert found.cameras == run / "cameras.json" and found.cameras.is_absolute()
+    assert main(["render", run.name, "-o", str(tmp_path / "x.exr"), "--focus", "3", "--width", "32"]) == 0
+    assert f"{run / 'cameras.json'}: 6 views" in capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""`dofview render` sequences on a run folder built from the shared burger scene: an 8-frame focus
+"""`dofview render` sequences on a run folder built from tests/data/burger.ply: an 8-frame focus
 pull to EXR + PNG + MP4, --resume, --range, a camera path through the training views, and one-line
 errors for bad sequence arguments."""
 
@@ -168,7 +168,7 @@ def test_adaptive_tone_mapping_is_smoothed_along_a_sequence(run, tmp_path):
     for i in range(3):
         channels, header = read_exr(tmp_path / f"s_{i:04d}.exr")
         keys.append(json.loads(header["dofview:tonemap_stats"])["key_log2"])
-        exposure = header["dofview:exposure"]
+        exposure = 2.0 ** header["dofview:exposure"]  # EV stops
         rgba = np.stack([channels[c] for c in "RGBA"], -1) / np.array([exposure, exposure, exposure, 1.0], np.float32)
         own.append(frame_stats(rgba, OPERATORS["reinhard05"]()).key)
     w = math.exp(-(1 / 24) / SMOOTHING_T0_S)
@@ -182,3 +182,32 @@ def test_adaptive_tone_mapping_is_smoothed_along_a_sequence(run, tmp_path):
     assert main([*common, "--stats", "joint", "-o", str(tmp_path / "j_%04d.exr")]) == 0
     joint = {read_exr(tmp_path / f"j_{i:04d}.exr")[1]["dofview:tonemap_stats"] for i in range(3)}
     assert len(joint) == 1
+
+
+def test_resume_renders_again_the_frames_whose_lens_or_settings_changed(run, tmp_path, capsys):
+    """--resume keeps only the frames whose headers record this command's camera, lens and settings."""
+    shot = ["render", run, "--frames", 3, "--focus", f"{NEAR}:{FAR}", "-o", tmp_path / "f_%02d.exr", "--resume"]
+    rc, err = run_cli(capsys, *shot, "--aperture", "40")
+    assert rc == 0 and "3 rendered, 0 already there" in err, err
+    rc, err = run_cli(capsys, *shot, "--aperture", "40")
+    assert rc == 0 and "0 rendered, 3 already there" in err, err
+    rc, err = run_cli(capsys, *shot, "--aperture", "60", "--range", "1:2")
+    assert rc == 0 and "2 rendered (2 of them again: their recorded lens (2) differed from this command), " \
+                       "0 already there" in err, err
+    lenses = [json.loads(read_exr(tmp_path / f"f_{i:02d}.exr")[1]["dofview:lens"]) for i in range(3)]
+    assert [lens["aperture"] for lens in lenses] == [40.0, 60.0, 60.0]
+    rc, err = run_cli(capsys, *shot, "--aperture", "60", "--exposure", "1")
+    assert rc == 0 and "3 rendered (3 of them again: their recorded lens (1), exposure (2) differed" in err, err
+
+
+def test_blur_is_resolved_once_on_frame_0_whatever_the_range(run, tmp_path, capsys):
+    """--blur in a focus pull: one strength for the shot, the same in a farm's chunk as in the whole."""
+    shot = ["render", run, "--frames", 4, "--focus", f"{NEAR}:{FAR}", "--blur", "1%"]
+    rc, err = run_cli(capsys, *shot, "-o", tmp_path / "all_%d.exr")
+    assert rc == 0, err
+    rc, err = run_cli(capsys, *shot, "-o", tmp_path / "chunk_%d.exr", "--range", "2:3")
+    assert rc == 0, err
+    whole = [json.loads(read_exr(tmp_path / f"all_{i}.exr")[1]["dofview:lens"]) for i in range(4)]
+    chunk = [json.loads(read_exr(tmp_path / f"chunk_{i}.exr")[1]["dofview:lens"]) for i in (2, 3)]
+    assert len({lens["aperture"] for lens in whole + chunk}) == 1 and whole[0]["aperture"] > 0
+    assert whole[0]["asked"] == "--blur 1%"

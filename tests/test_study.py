@@ -21,7 +21,7 @@ def test_study_writes_the_table_plot_and_rows(tmp_path):
     assert {"pinhole", "k=1/9 (CineGS)", "k=1/4", "k=1 (Spark)", "default", "conserve cut"} <= methods
     assert {r["view"] for r in rows} == {"0", "1"}
     table = (out / "study.md").read_text()
-    assert "| default |" in table and "A = 100" in table
+    assert "| default |" in table and "Largest blur (6 px CoC): frame time / pinhole" in table
     assert (out / "study.png").stat().st_size > 10_000
 
     def acc(n: int) -> float:

@@ -182,8 +182,9 @@ def test_trained_scene_refocuses_and_reexposes_in_render(trained, tmp_path):
     ply = trained / "full.ply"
     view = ["--width", "64", "--height", "48", "--eye", "0,0,0", "--target", "0,0,4.5", "--fov", "39.6"]
     images = {}
-    for name, extra in {"near": ["--focus", "3", "--aperture", "30"], "far": ["--focus", "6", "--aperture", "30"],
-                        "near_dark": ["--focus", "3", "--aperture", "30", "--exposure", "-3"]}.items():
+    # --aperture 375 at the --eye/--target reference width of 800 px: A = 30 on this 64 px image
+    for name, extra in {"near": ["--focus", "3", "--aperture", "375"], "far": ["--focus", "6", "--aperture", "375"],
+                        "near_dark": ["--focus", "3", "--aperture", "375", "--exposure", "-3"]}.items():
         assert main(["render", str(ply), "-o", str(tmp_path / f"{name}.exr"), *view, *extra]) == 0
         ch, header = read_exr(tmp_path / f"{name}.exr")
         images[name] = np.stack([ch[c] for c in "RGB"], -1)

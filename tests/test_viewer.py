@@ -177,8 +177,8 @@ def test_physical_lens_and_exposure_from_aperture(session):
     p = r["physical"]
     lens = PhysicalLens(50.0, 1.4).lens(p["camera"]["fx"], p["lens"]["focus"])
     assert p["lens"]["aperture"] == pytest.approx(lens.aperture)
-    assert p["tonemap"]["exposure"] == pytest.approx(2 ** 0.5 * 0.5 / 1.4 ** 2)
-    assert r["linear"]["colour_space"] == "linear" and r["linear"]["tonemap"]["exposure"] == pytest.approx(2 ** 0.5)
+    assert 2.0 ** p["tonemap"]["exposure"] == pytest.approx(2 ** 0.5 * 0.5 / 1.4 ** 2)  # EV stops
+    assert r["linear"]["colour_space"] == "linear" and r["linear"]["tonemap"]["exposure"] == pytest.approx(0.5)
 
 
 def test_focus_aid_tints_the_image(session):

@@ -154,11 +154,11 @@ def test_settings_build_the_render_objects():
     expected = PhysicalLens(s.focal_mm, s.fnumber, s.sensor_mm, s.units_per_metre).strength(cam.fx, 3.0)
     assert s.lens(cam).aperture == pytest.approx(expected)
     s.ev = 1.0
-    assert s.tonemap().exposure == pytest.approx(2.0)
+    assert s.tonemap().multiplier == pytest.approx(2.0)
     s.exposure_follows_aperture, s.shutter_s = True, 0.5
-    assert s.tonemap().exposure == pytest.approx(2.0 * 0.5 / s.fnumber ** 2)
+    assert s.tonemap().multiplier == pytest.approx(2.0 * 0.5 / s.fnumber ** 2)
     s.fnumber *= 2  # one more f-number doubling: a quarter of the light
-    assert s.tonemap().exposure == pytest.approx(2.0 * 0.5 / s.fnumber ** 2)
+    assert s.tonemap().multiplier == pytest.approx(2.0 * 0.5 / s.fnumber ** 2)
     assert s.lens_info()["fnumber"] == s.fnumber
 
 

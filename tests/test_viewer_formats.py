@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 from conftest import random_scene
-from inria_folder import SCENES as SHARED
+from inria_folder import SCENES as DATA
 from test_viewer import display, run_viewer  # noqa: F401  (display is a fixture)
 
 from dofview.bench.formats import convert, splat_transform
@@ -21,12 +21,12 @@ def test_viewer_opens_each_format(display, tmp_path):  # noqa: F811
     (tmp_path / "sog").mkdir()
     meta = convert(ply, tmp_path / "sog" / "meta.json")
     cut = tmp_path / "cut.spz"
-    cut.write_bytes(Path(SHARED, "biker.spz").read_bytes()[:100_000])
+    cut.write_bytes(Path(DATA, "biker.spz").read_bytes()[:100_000])
     script = [{"do": "report", "path": tmp_path / "spz.json"}]
-    for name, path in (("compressed", f"{SHARED}/guitar.compressed.ply"), ("sog", meta), ("cut", cut)):
+    for name, path in (("compressed", f"{DATA}/guitar.compressed.ply"), ("sog", meta), ("cut", cut)):
         script += [{"do": "open", "path": path}, {"do": "report", "path": tmp_path / f"{name}.json"}]
     (tmp_path / "script.json").write_text(json.dumps(script + [{"do": "quit"}], default=str))
-    res = run_viewer([f"{SHARED}/biker.spz", "--spz-axes", "rub", "--width", "320", "--height", "240",
+    res = run_viewer([f"{DATA}/biker.spz", "--spz-axes", "rub", "--width", "320", "--height", "240",
                       "--script", tmp_path / "script.json"], {**os.environ, "DISPLAY": display})
     assert res.returncode == 0, res.stderr
     assert "biker.spz: SPZ v4, data read as RUB (--spz-axes)" in res.stderr

@@ -1,4 +1,4 @@
-"""The viewer on Inria-style run folders built from the shared real scenes, under Xvfb: it opens at
+"""The viewer on Inria-style run folders built from tests/data's scenes, under Xvfb: it opens at
 training view 0 showing what `dofview render FOLDER` renders, orbits around the rig's centre, starts
 sharp, cycles the world up with U, and opens a run folder or a camera-less scene from the panel."""
 
@@ -118,7 +118,7 @@ def test_opening_a_folder_takes_its_cameras_and_a_plain_scene_drops_them(session
     assert "cameras.json: 6 views" in other["message"] and other["error"] == ""
     plain = r["plain"]
     assert plain["scene"] == str(TWO_PLANES) and plain["views"] == 0 and plain["view_index"] is None
-    assert plain["up_label"] == "+x" and "up +x (" in plain["message"]
+    assert plain["up_label"] == "-x" and "up -x (" in plain["message"]  # a box's top: issue 22
     alpha_shown = read_png(out / "plain.png").astype(float).sum(axis=2) > 30
     ys, xs = np.nonzero(alpha_shown)
     assert abs(xs.mean() / IMAGE[0] - 0.5) < 0.15 and abs(ys.mean() / IMAGE[1] - 0.5) < 0.15  # framed, not lost

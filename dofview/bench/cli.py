@@ -21,6 +21,7 @@ from dofview.io.cameras import load_cameras_json, select_camera
 from dofview.options import (
     add_scene_args,
     add_view_args,
+    blur_value,
     camera_from_args,
     focus_value,
     load_scene_arg,
@@ -95,21 +96,29 @@ def add_parser(sub) -> None:
     g = p.add_argument_group("what to measure (comma-separated lists)")
     d = BenchConfig()
     g.add_argument("--focus", type=_list_of(focus_value, "focus distances"), help="focus distances or 'auto' (default auto)")
-    g.add_argument("--apertures", type=_list_of(_aperture, "apertures"), help="apertures A for the error study (default 50,100,200)")
-    g.add_argument("--grid-apertures", type=_list_of(_aperture, "apertures"), help="apertures of the A×τ table (default 0,50,100,200)")
+    g.add_argument("--blur", type=_list_of(blur_value, "blur radii"), metavar="R[%][@DEPTH],…",
+                   help="the study's apertures by the blur they make on the bench's image, as render's --blur: the "
+                        "largest blur in view (2nd–98th percentile depths of the first view's pinhole pass) has "
+                        f"radius R px, or R%% of the width; R@DEPTH: at that camera depth (default "
+                        f"{','.join(map(str, d.blur))})")
+    g.add_argument("--apertures", type=_list_of(_aperture, "apertures"), help="apertures A for the error study, "
+                   "px·scene unit, instead of --blur")
+    g.add_argument("--grid-apertures", type=_list_of(_aperture, "apertures"), help="apertures of the A×τ table "
+                   "(default 0 and the study's)")
     g.add_argument("--taus", type=_list_of(tau_value, "τ values"), help="τ values (default 0,1/255,2/255,3/255)")
     g.add_argument("--ks", type=_list_of(_fraction, "k values"), help="aperture covariance scales k (default 1/9,1/4,1)")
     g.add_argument("--norms", type=_list_of(_norm, "opacity normalisations"), help=f"opacity normalisations (default {','.join(OPACITY_NORMS)})")
     g.add_argument("--ref-samples", type=_positive_int, help=f"lens samples of the reference (default {d.ref_samples})")
-    g.add_argument("--acc-samples", type=_list_of(_positive_int, "sample counts"), help="accumulation sample counts compared (default 4,8,16,32,64)")
+    g.add_argument("--acc-samples", type=_list_of(_positive_int, "sample counts"), help=f"accumulation sample counts compared (default {_csv(d.acc_samples)})")
     g.add_argument("--frames", type=_positive_int, help=f"timed frames per setting (default {d.frames})")
     g.add_argument("--warmup", type=_positive_int, default=None, help=f"warm-up rounds (default {d.warmup})")
-    g.add_argument("--counts", type=_list_of(_positive_int, "Gaussian counts"), help="random-scene sizes for scaling (default 10000,100000,1000000)")
-    g.add_argument("--count-size", type=_size, help="image size for the Gaussian-count scaling, WxH (default 960x540)")
-    g.add_argument("--widths", type=_list_of(_positive_int, "widths"), help="image widths for resolution scaling (default 320,640,1280)")
+    g.add_argument("--counts", type=_list_of(_positive_int, "Gaussian counts"), help=f"random-scene sizes for scaling (default {_csv(d.counts)})")
+    g.add_argument("--count-size", type=_size, help="image size for the Gaussian-count scaling, WxH (default {}x{})".format(*d.count_size))
+    g.add_argument("--widths", type=_list_of(_positive_int, "widths"), help=f"image widths for resolution scaling (default {_csv(d.widths)})")
     g.add_argument("--no-scaling", action="store_true", help="skip the scaling measurements")
-    g.add_argument("--bench-width", type=_positive_int, default=480, help="image width when --width is not given (default 480)")
-    g.add_argument("--exposure", type=float, default=0.0, help="display exposure in EV for PSNR/SSIM (default 0)")
+    g.add_argument("--bench-width", type=_positive_int, default=320, help="image width when --width is not given (default 320)")
+    g.add_argument("--exposure", type=number(-60, 60, hi_open=False, what="exposure"), default=0.0,
+                   help="display exposure in EV stops for PSNR/SSIM (default 0)")
     g.add_argument("--tau", type=tau_value, default=RenderSettings.tau, help="base τ (default: the code's default)")
     g.add_argument("--k", type=_fraction, default=RenderSettings.k, help="base k (default: the code's default)")
     g.add_argument("--opacity-norm", type=_norm, default=RenderSettings.opacity_norm, help="base normalisation (default: the code's)")
@@ -123,6 +132,10 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def _csv(values) -> str:
+    return ",".join(f"{v:g}" for v in values)
+
+
 def _norm(text: str) -> str:
     if text not in OPACITY_NORMS:
         raise argparse.ArgumentTypeError(f"opacity normalisation must be one of {', '.join(OPACITY_NORMS)}, got {text!r}")
@@ -131,7 +144,9 @@ def _norm(text: str) -> str:
 
 def config_from_args(args: argparse.Namespace) -> BenchConfig:
     cfg = BenchConfig(**QUICK) if args.quick else BenchConfig()
-    given = {"focus": args.focus, "apertures": args.apertures, "grid_apertures": args.grid_apertures,
+    if args.blur and args.apertures:
+        raise DofviewError("give the study's apertures either as --blur R or as --apertures A, not both")
+    given = {"focus": args.focus, "blur": args.blur, "apertures": args.apertures, "grid_apertures": args.grid_apertures,
              "taus": args.taus, "ks": args.ks, "norms": args.norms, "ref_samples": args.ref_samples,
              "acc_samples": args.acc_samples, "frames": args.frames, "warmup": args.warmup, "counts": args.counts,
              "count_size": args.count_size, "widths": args.widths, "raster": args.raster}
@@ -144,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
         args.bench_width = 96
     cfg = config_from_args(args)
     base = RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm, near=args.near)
-    tm = Tonemap(exposure=2.0 ** args.exposure)
+    tm = Tonemap(exposure=args.exposure)
     out = args.out or Path(f"{'study' if args.views else 'bench'}_{args.scene.stem}")
     if out.exists() and not out.is_dir():
         raise DofviewError(f"{out}: exists and is not a folder")

@@ -71,6 +71,23 @@ class Parts:
         )
 
 
+_FACING = {0: (math.cos(math.pi / 4), 0.0, math.sin(math.pi / 4), 0.0),  # local z (the flat axis) onto x
+           1: (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0),  # … onto y
+           2: (1.0, 0.0, 0.0, 0.0)}  # … z as it is
+
+
+def add_panel(parts: "Parts", axis: int, at: float, span: dict[int, tuple[float, float]], colour,
+              spacing: float = 0.1, opacity: float = 0.95) -> None:
+    """A flat rectangle of thin Gaussians facing along world ``axis`` (0, 1, 2) at coordinate ``at``,
+    covering ``span`` {each other axis: (lo, hi)}, one splat per ``spacing``² (scene units): walls,
+    floors, table tops."""
+    (b, (b0, b1)), (c, (c0, c1)) = sorted(span.items())
+    u, v = np.meshgrid(np.arange(b0 + spacing / 2, b1, spacing), np.arange(c0 + spacing / 2, c1, spacing))
+    means = np.zeros((u.size, 3))
+    means[:, axis], means[:, b], means[:, c] = at, u.ravel(), v.ravel()
+    parts.add(means, (0.6 * spacing, 0.6 * spacing, 0.03 * spacing), colour, opacity, _FACING[axis])
+
+
 def grid(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
     """Texel indices (i along u, j along v), each (nv, nu) int."""
     j, i = np.mgrid[0:nv, 0:nu]

@@ -9,7 +9,8 @@ One run measures, on one scene and its cameras:
 * scaling with the number of Gaussians (synth.random_scene) and with resolution, with the
   fragments each frame rasterises estimated from the quads (see :func:`quad_fragments`);
 * the error of every single-pass setting and of thin-lens accumulation with few samples against
-  the accumulation reference (≥ 256 lens samples, accumulate.py, GL renderer at aperture 0).
+  the accumulation reference (``ref_samples`` lens samples, accumulate.py, GL renderer at aperture 0),
+  at apertures chosen from the scene by the blur they make in pixels (BenchConfig.with_apertures).
 
 Writes timing.csv, error.csv, scaling.csv, report.md and PNG plots into ``--out``.
 The command line is :mod:`dofview.bench.cli`; also runnable as ``python -m dofview.bench``.
@@ -36,11 +37,11 @@ from dofview.bench.variants import (
 from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
-from dofview.lens import Lens
+from dofview.lens import Lens, aperture_for_blur
 from dofview.progress import Progress
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.accumulate import accumulate
-from dofview.rendering.focus import auto_focus
+from dofview.rendering.focus import auto_focus, depth_range
 from dofview.rendering.reference import project
 from dofview.rendering.sort import front_to_back
 from dofview.scene import GaussianScene
@@ -115,27 +116,59 @@ def time_round_robin(jobs: Sequence[tuple[Renderer, Camera, Lens, RenderSettings
     return out
 
 
+class Steps:
+    """Progress of a run made of stages: ``steps.stage("reference A=12", 256)`` then one call per
+    step; the progress line names the stage and counts its steps, so the first minutes of a long
+    run are not silent. ``weight``: the step's cost in pinhole frames at the bench's size, for the
+    ETA (a 200k-Gaussian frame costs more than a 40k one)."""
+
+    def __init__(self, prog: Progress) -> None:
+        self.prog, self.done = prog, 0
+        self.stage("starting", 0)
+
+    def stage(self, name: str, count: int, weight: int = 1) -> None:
+        self.name, self.count, self.i, self.weight = name, count, 0, weight
+
+    def __call__(self) -> None:
+        self.i += 1
+        self.done += self.weight
+        self.prog.update(self.done, info=f"{self.name} {self.i}/{self.count}")
+
+
 # ---- the run ---------------------------------------------------------------------------------------
 def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, base: RenderSettings, tm: Tonemap,
               scaling: bool = True, log=print) -> dict:
-    """Measure everything (see the module docstring) and return the rows for the outputs."""
+    """Measure everything (see the module docstring) and return the rows for the outputs.
+
+    Apertures that ``cfg`` leaves to the scene are chosen from the first view's pinhole image
+    (BenchConfig.with_apertures); the result's ``blur_px`` maps every aperture studied to its
+    largest blur in that view (px)."""
     renderer = get_backend(cfg.raster, scene)
     timer = FrameTimer(renderer.ctx)
     encoded = scene.colour_space == "srgb"
     hdr = scene.colour_space == "linear"
-    variants = settings_variants(base, cfg, encoded)
     pin = pinhole_settings(base)
 
     focuses: list[list[float]] = []
-    for cam in cameras:
+    for v, cam in enumerate(cameras):
+        pinhole = renderer.render(cam, Lens(1.0, 0.0), pin)
+        if v == 0:
+            depths = depth_range(pinhole)
         fs = []
         for f in cfg.focus:
             if f == "auto":
-                f = auto_focus(renderer.render(cam, Lens(1.0, 0.0), pin))
+                f = auto_focus(pinhole)
                 if f is None:
                     raise DofviewError(f"{cam.name or 'camera'}: nothing under the image centre to focus on; give --focus")
             fs.append(float(f))
         focuses.append(fs)
+    if depths is None:
+        raise DofviewError(f"{cameras[0].name or 'camera'}: the view shows nothing of the scene")
+    chosen = cfg.apertures is None
+    cfg = cfg.with_apertures(cameras[0].width, focuses[0][0], depths)
+    px_per_a = 1.0 / aperture_for_blur(1.0, focuses[0][0], *depths)
+    blur_px = {a: a * px_per_a for a in (*cfg.grid_apertures, *cfg.apertures)}
+    variants = settings_variants(base, cfg, encoded)
 
     jobs_by_view: list[list[Job]] = []
     for v, fs in enumerate(focuses):
@@ -144,24 +177,22 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
         jobs += [Job(v, f, a, st) for f in fs for a in cfg.apertures for st in variants]
         jobs_by_view.append(list(dict.fromkeys(jobs)))
     n_cases = sum(len(fs) for fs in focuses) * len(cfg.apertures)
-    ref_renders = cfg.ref_samples * (2 if encoded else 1) + sum(cfg.acc_samples)
-    steps = (sum(len(j) for j in jobs_by_view) * (cfg.frames + cfg.warmup) + n_cases * (ref_renders + len(variants)))
+    ref_renders = cfg.ref_samples * (2 if encoded else 1)
+    steps = (sum(len(j) for j in jobs_by_view) * (cfg.frames + cfg.warmup)
+             + n_cases * (ref_renders + sum(cfg.acc_samples) + len(variants)))
     if scaling:
-        steps += (len(cfg.counts) * 3 + len(cfg.widths) * 2) * (cfg.scaling_frames + cfg.warmup)
+        steps += sum(w * n for w, n in _scaling_weights(cameras[0], scene.count, cfg))
 
     timing_rows: list[dict] = []
     error_rows: list[dict] = []
     scaling_rows: list[dict] = []
     with Progress("bench", steps) as prog:
-        done = [0]
-
-        def tick() -> None:
-            done[0] += 1
-            prog.update(done[0])
+        tick = Steps(prog)
 
         # 1. frame time of every single-pass job, per view (a view change would re-sort)
         for v, jobs in enumerate(jobs_by_view):
             cam = cameras[v]
+            tick.stage(f"timing view {v}: {len(jobs)} settings, frame", len(jobs) * (cfg.frames + cfg.warmup))
             res = time_round_robin([(renderer, cam, Lens(j.focus, j.aperture), j.settings) for j in jobs],
                                    timer, cfg.frames, cfg.warmup, tick)
             sort_ms = median_sort_ms(scene, cam, cfg.frames)
@@ -179,6 +210,7 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
             for f in fs:
                 for a in cfg.apertures:
                     lens = Lens(f, a)
+                    tick.stage(f"view {v} A={a:.3g} ({blur_px[a]:.3g} px): reference lens sample", ref_renders)
                     refs = make_references(renderer, cam, lens, base, cfg.ref_samples, encoded, tick)
                     case = {"view": v, "camera": cam.name, "focus": f, "aperture": a}
                     # how far each blend space's own reference sits from the physical one: the
@@ -193,6 +225,7 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
                                            "measured_ms": float("nan"), **e,
                                            **{k + "_physical": x for k, x in e.items()}})
                     for n in cfg.acc_samples:
+                        tick.stage(f"view {v} A={a:.3g}: accumulation ×{n}, sample", n)
                         t0 = time.perf_counter()
                         acc = accumulate(lambda c: (tick(), renderer.render(c, Lens(f, 0.0), pin))[1], cam, lens, n)
                         wall = (time.perf_counter() - t0) * 1e3
@@ -200,6 +233,7 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
                         error_rows.append({**case, "method": "accumulation", "samples": n, **_settings_cols(pin),
                                            "time_ms": n * pin_ms, "measured_ms": wall, **e,
                                            **{k + "_physical": x for k, x in e.items()}})
+                    tick.stage(f"view {v} A={a:.3g}: single-pass setting", len(variants))
                     for st in variants:
                         fr = renderer.render(cam, lens, st)
                         tick()
@@ -217,7 +251,7 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
     return {"timing": timing_rows, "error": error_rows, "scaling": scaling_rows,
             "gl_renderer": renderer.ctx.info.get("GL_RENDERER", "?"), "backend": renderer.name,
             "timer_query_ok": timer_query_covers_raster(renderer.ctx), "base": base, "config": cfg,
-            "scene": scene, "hdr": hdr, "encoded": encoded}
+            "blur_px": blur_px, "apertures_chosen": chosen, "depth_range": depths, "scene": scene, "hdr": hdr, "encoded": encoded}
 
 
 def _settings_cols(st: RenderSettings) -> dict:
@@ -233,11 +267,24 @@ def _find(rows: list[dict], view: int, focus: float, aperture: float, st: Render
     raise KeyError((view, focus, aperture, st))
 
 
+def _scaling_weights(camera: Camera, count: int, cfg: BenchConfig) -> list[tuple[int, int]]:
+    """(weight, steps) of the two scaling round-robins (Gaussian counts, then resolutions): a step's
+    weight is its mean cost in frames of ``camera`` on the bench scene of ``count`` Gaussians,
+    guessed as the pixel ratio times the Gaussian ratio; it only steers the ETA."""
+    px = camera.width * camera.height
+    w, h = cfg.count_size
+    counts = [w * h / px * max(1.0, n / count) for n in cfg.counts]
+    widths = [wd * wd * camera.height / camera.width / px for wd in cfg.widths]
+    rounds = cfg.scaling_frames + cfg.warmup
+    return [(max(1, round(float(np.mean(c)))), len(c) * k * rounds) for c, k in ((counts, 3), (widths, 2))]
+
+
 def _scaling(renderer: Renderer, scene: GaussianScene, camera: Camera, focus: float, cfg: BenchConfig,
-             base: RenderSettings, timer: FrameTimer, tick, log) -> list[dict]:
+             base: RenderSettings, timer: FrameTimer, tick: Steps, log) -> list[dict]:
     from dofview.bench.synth import benchmark_camera, random_scene
 
     a = cfg.scaling_aperture
+    (w_counts, n_counts), (w_widths, n_widths) = _scaling_weights(camera, scene.count, cfg)
     jobs, meta = [], []
     # Gaussians: random scenes filling the benchmark camera's view; focus mid-depth
     cam = benchmark_camera(*cfg.count_size)
@@ -254,9 +301,12 @@ def _scaling(renderer: Renderer, scene: GaussianScene, camera: Camera, focus: fl
                          "focus": f, "aperture": ap, "sort_ms": sort_ms, "scene_obj": s, **_settings_cols(st)})
     # the Gaussian counts and the resolutions are timed in separate round-robins: a 1M-Gaussian
     # frame next to a 320-px one would let the big one's cache and memory traffic leak into it
+    tick.stage(f"scaling {', '.join(f'{n:,}' for n in cfg.counts)} Gaussians: frame", n_counts, w_counts)
     res = time_round_robin(jobs, timer, cfg.scaling_frames, cfg.warmup, tick)
     n_count_jobs = len(jobs)
-    # resolution: the bench scene at several widths, the same physical lens (A scales with fx)
+    # resolution: the bench scene at several widths, the same physical lens (A scales with fx),
+    # the study's middle aperture
+    a = cfg.apertures[len(cfg.apertures) // 2]
     base_w = camera.width
     sort_ms = median_sort_ms(scene, camera, cfg.scaling_frames)
     for w in cfg.widths:
@@ -268,6 +318,7 @@ def _scaling(renderer: Renderer, scene: GaussianScene, camera: Camera, focus: fl
             jobs.append((r, c, Lens(focus, ap), st))
             meta.append({"kind": "resolution", "gaussians": scene.count, "width": w, "height": h, "focus": focus,
                          "aperture": ap, "sort_ms": sort_ms, "scene_obj": scene, **_settings_cols(st)})
+    tick.stage(f"scaling widths {', '.join(map(str, cfg.widths))}: frame", n_widths, w_widths)
     res += time_round_robin(jobs[n_count_jobs:], timer, cfg.scaling_frames, cfg.warmup, tick)
     rows = []
     for (r, c, lens, st), m, t in zip(jobs, meta, res):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dofview.bench.runner import time_round_robin
+from dofview.bench.runner import Steps, time_round_robin
 from dofview.bench.timing import FrameTimer
 from dofview.bench.variants import errors, make_references, pinhole_settings
 from dofview.camera import Camera, look_at
@@ -119,23 +119,22 @@ def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderS
     rows: list[dict] = []
     steps = len(cases) * (ref_samples + max(acc_samples) + len(variants) * (frames + 2) + frames + 1)
     with Progress("study", steps) as prog:
-        done = [0]
-
-        def tick() -> None:
-            done[0] += 1
-            prog.update(done[0])
-
-        for case in cases:
+        tick = Steps(prog)
+        for i, case in enumerate(cases):
             cam, lens = case.camera, case.lens
+            label = f"case {i + 1}/{len(cases)} (CoC {case.coc_px:g} px)"
             pin = Lens(lens.focus, 0.0)
             lenses = [pin if name == "pinhole" else lens for name in variants]
             jobs = [(renderer, cam, pin, base)] + [(renderer, cam, ln, st) for ln, st in zip(lenses, variants.values())]
+            tick.stage(f"{label}: timing frame", len(jobs) * (frames + 1))
             times = time_round_robin(jobs, timer, frames, 1, tick)
             pin_ms = times[0]["wall_med_ms"]
+            tick.stage(f"{label}: truth lens sample", ref_samples)
             truth = make_references(renderer, cam, lens, base, ref_samples, False, tick).physical
             info = {"view": case.view, "focus": lens.focus, "aperture": lens.aperture,
                     "focus_pct": case.focus_pct, "coc_px": case.coc_px}
             acc = ProgressiveLens(renderer)
+            tick.stage(f"{label}: progressive lens sample", max(acc_samples))
             for n in range(1, max(acc_samples) + 1):
                 acc.add(cam, lens, base)
                 tick()
@@ -144,6 +143,7 @@ def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderS
                     e = errors(renderer.read(), truth, tm, hdr)
                     rows.append({**info, "method": f"accumulation {n}", "samples": n, **e, "time_ratio": float(n)})
             acc.release()
+            tick.stage(f"{label}: single-pass variant", len(variants))
             for (name, st), ln, t in zip(variants.items(), lenses, times[1:]):
                 e = errors(renderer.render(cam, ln, st), truth, tm, hdr)
                 tick()
@@ -201,20 +201,22 @@ def plot_study(path, name: str, summary: dict[str, dict[str, float]], ref_sample
     plt.close(fig)
 
 
-def fixed_aperture_ratio(renderer: Renderer, cases: list[Case], aperture: float = 100.0, frames: int = 7) -> dict:
-    """Median frame time at aperture ``aperture`` (default, and with the conserving cut) over the
-    pinhole frame at the default τ, per distinct camera and focus of ``cases``, timed round-robin."""
+def largest_blur_ratio(renderer: Renderer, cases: list[Case], frames: int = 7) -> dict:
+    """Median frame time at the largest aperture of ``cases`` per distinct camera and focus (their
+    largest CoC in px; default settings, and with the conserving cut) over the pinhole frame at the
+    default τ, timed round-robin: a cost that means the same blur whatever the scene's units."""
     timer = FrameTimer(renderer.ctx)
     prev = study_variants()["conserve cut"]
     out = {"default": [], "conserve cut": []}
-    seen = set()
+    largest: dict[tuple[int, float], Case] = {}
     for c in cases:
-        if (c.view, c.lens.focus) in seen:
-            continue
-        seen.add((c.view, c.lens.focus))
+        key = (c.view, c.lens.focus)
+        if key not in largest or c.lens.aperture > largest[key].lens.aperture:
+            largest[key] = c
+    for c in largest.values():
         jobs = [(renderer, c.camera, Lens(c.lens.focus, 0.0), RenderSettings()),
-                (renderer, c.camera, Lens(c.lens.focus, aperture), RenderSettings()),
-                (renderer, c.camera, Lens(c.lens.focus, aperture), prev)]
+                (renderer, c.camera, c.lens, RenderSettings()),
+                (renderer, c.camera, c.lens, prev)]
         t = [x["wall_med_ms"] for x in time_round_robin(jobs, timer, frames, 1, lambda: None)]
         out["default"].append(t[1] / t[0])
         out["conserve cut"].append(t[2] / t[0])
@@ -246,8 +248,8 @@ def run_cli(args, scene: GaussianScene, out: Path, command: str) -> int:
         ref = args.ref_samples or 128
         acc = tuple(n for n in (1, 2, 4, 8, 16, 32, 64, 128, 256) if n <= ref)
         rows = run_study(renderer, cases, study_variants(), ref, acc, args.frames or 3,
-                         Tonemap(exposure=2.0 ** args.exposure))
-        fixed = fixed_aperture_ratio(renderer, cases)
+                         Tonemap(exposure=args.exposure))
+        fixed = largest_blur_ratio(renderer, cases)
     finally:
         renderer.release()
     summary = summarise(rows)
@@ -260,7 +262,8 @@ def run_cli(args, scene: GaussianScene, out: Path, command: str) -> int:
               f"{', '.join(f'{c:g}' for c in args.coc_px)} px; truth: {ref} lens samples, linear light; "
               f"renderer {renderer.name}, llvmpipe timings as ratios."), ""]
     lines += table_lines(name, summary, scene.count, len(cases))
-    lines.append(f"A = 100 (px·unit): frame time / pinhole at the default τ: default {fixed['default']:.2f}×, "
+    lines.append(f"Largest blur ({max(args.coc_px):g} px CoC): frame time / pinhole at the default τ: default "
+                 f"{fixed['default']:.2f}×, "
                  f"conserve cut {fixed['conserve cut']:.2f}× (mean over views and focus distances)")
     (out / "study.md").write_text("\n".join(lines) + "\n")
     print(f"{out}: study.csv, study.md, study.png", file=sys.stderr)

@@ -28,6 +28,7 @@ import numpy as np
 from dofview.bench.primitives import (
     IDENTITY_QUAT,
     Parts,
+    add_panel,
     dc_from_colour,
     grid,
     orbit_cameras,
@@ -574,6 +575,29 @@ def random_scene(n: int, degree: int = 0, seed: int = 0, extent: float = 10.0, *
         sh_rest *= f32(0.05)
     return GaussianScene(means=means, quats=quats, scales=scales, opacities=opacities, sh_dc=sh_dc,
                          sh_rest=sh_rest, colour_space="srgb", name="random")
+
+
+ROOM_SIZE = (8.0, 3.0, 5.0)  # x, y, z extent of :func:`room_scene`, scene units
+
+
+def room_scene() -> GaussianScene:
+    """A room seen from nowhere (no cameras): 8 (x) × 3 (y) × 5 (z) units around the origin, world
+    y down (−y up, the 3DGS convention): floor at y = 1.5, ceiling at −1.5, four walls of their own
+    colours (x = −4 red, x = +4 green, z = −2.5 blue, z = +2.5 yellow), a table (top at y = 0.7)
+    and a low sofa. ~19,000 thin Gaussians, SH degree 0, sRGB; no randomness."""
+    parts = Parts.empty()
+    hx, hy, hz = (e / 2 for e in ROOM_SIZE)
+    x, y, z = (-hx, hx), (-hy, hy), (-hz, hz)
+    add_panel(parts, 1, hy, {0: x, 2: z}, (0.55, 0.45, 0.35))  # floor
+    add_panel(parts, 1, -hy, {0: x, 2: z}, (0.9, 0.9, 0.88))  # ceiling
+    add_panel(parts, 0, -hx, {1: y, 2: z}, (0.8, 0.3, 0.3))
+    add_panel(parts, 0, hx, {1: y, 2: z}, (0.3, 0.7, 0.3))
+    add_panel(parts, 2, -hz, {0: x, 1: y}, (0.3, 0.3, 0.8))
+    add_panel(parts, 2, hz, {0: x, 1: y}, (0.8, 0.8, 0.3))
+    add_panel(parts, 1, 0.7, {0: (1.0, 2.5), 2: (-1.8, -0.6)}, (0.4, 0.25, 0.1), 0.05)  # table top
+    add_panel(parts, 1, 1.0, {0: (-3.5, -1.5), 2: (1.2, 2.2)}, (0.2, 0.4, 0.6), 0.05)  # sofa seat
+    add_panel(parts, 2, 2.2, {0: (-3.5, -1.5), 1: (0.2, 1.0)}, (0.2, 0.4, 0.6), 0.05)  # sofa back
+    return parts.build("srgb", "room")
 
 
 def single_gaussian(position, scale: float, opacity: float = 0.2, colour=(1.0, 1.0, 1.0), *,

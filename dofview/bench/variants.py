@@ -11,7 +11,7 @@ import numpy as np
 from dofview.bench.metrics import log_radiance_error, psnr, ssim
 from dofview.camera import Camera
 from dofview.frame import OPACITY_NORMS, Frame, RenderSettings
-from dofview.lens import Lens
+from dofview.lens import BlurSpec, Lens
 from dofview.rendering import Renderer
 from dofview.rendering.accumulate import accumulate
 from dofview.tonemap import Tonemap, decode, display, encode
@@ -20,27 +20,40 @@ from dofview.tonemap import Tonemap, decode, display, encode
 # ---- what one run measures ---------------------------------------------------------------------
 @dataclass(frozen=True)
 class BenchConfig:
-    """Everything a run varies. Apertures A are px·scene unit at the bench's image width."""
+    """Everything a run varies. Apertures A are px·scene unit at the bench's image width.
+
+    ``apertures`` None: the apertures whose blur is each of ``blur`` (``--blur``, as render's, in px
+    of the bench's image): by default the largest blur in view, the CoC radius at the 2nd/98th depth
+    percentile of the first view's pinhole image for its first focus, so that a scene gets the same
+    blur in pixels whatever its units. ``grid_apertures`` None: 0 and the study's apertures. The
+    defaults are sized to finish in minutes on llvmpipe with 2 cores (times: docs/BENCHMARKS.md)."""
 
     focus: tuple[float | str, ...] = ("auto",)
-    apertures: tuple[float, ...] = (50.0, 100.0, 200.0)      # error study
-    grid_apertures: tuple[float, ...] = (0.0, 50.0, 100.0, 200.0)  # the poster's table
+    blur: tuple[BlurSpec, ...] = (BlurSpec(4.0), BlurSpec(8.0), BlurSpec(16.0))
+    apertures: tuple[float, ...] | None = None      # error study
+    grid_apertures: tuple[float, ...] | None = None  # the poster's table
     taus: tuple[float, ...] = (0.0, 1 / 255, 2 / 255, 3 / 255)
     ks: tuple[float, ...] = (1 / 9, 1 / 4, 1.0)
     norms: tuple[str, ...] = OPACITY_NORMS
-    ref_samples: int = 256
-    acc_samples: tuple[int, ...] = (4, 8, 16, 32, 64)
+    ref_samples: int = 64
+    acc_samples: tuple[int, ...] = (2, 4, 8, 16)
     frames: int = 5
     warmup: int = 1
-    counts: tuple[int, ...] = (10_000, 100_000, 1_000_000)
-    count_size: tuple[int, int] = (960, 540)
-    widths: tuple[int, ...] = (320, 640, 1280)
-    scaling_aperture: float = 100.0
+    counts: tuple[int, ...] = (10_000, 50_000, 200_000)
+    count_size: tuple[int, int] = (480, 270)
+    widths: tuple[int, ...] = (160, 320, 640)
+    scaling_aperture: float = 100.0  # the random scenes' (synth.benchmark_camera's fixed units)
     scaling_frames: int = 2
     raster: str = "auto"  # renderer backend (dofview.rendering.BACKENDS, or "auto")
 
+    def with_apertures(self, width: int, focus: float, span: tuple[float, float]) -> "BenchConfig":
+        """This configuration with the apertures it leaves to the scene chosen for a view ``width``
+        px wide whose depths in view span ``span`` = (near, far) (scene units) at focus ``focus``."""
+        aps = self.apertures or tuple(b.aperture(width, width, focus, span) for b in self.blur)
+        return replace(self, apertures=aps, grid_apertures=self.grid_apertures or (0.0, *aps))
 
-QUICK = dict(apertures=(40.0,), grid_apertures=(0.0, 40.0), taus=(0.0, 2 / 255), ks=(1 / 4, 1.0),
+
+QUICK = dict(blur=(BlurSpec(8.0),), taus=(0.0, 2 / 255), ks=(1 / 4, 1.0),
              norms=("energy", "optical-depth"), ref_samples=64, acc_samples=(2, 4, 16), frames=2,
              counts=(2_000, 6_000), count_size=(160, 90), widths=(48, 96), scaling_aperture=40.0,
              scaling_frames=2)

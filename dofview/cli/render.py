@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from dofview.api import save_render
 from dofview.cli.sequence import (
     add_sequence_args,
-    auto_focus_at,
+    focus_and_span,
     is_sequence,
     lens_info,
     run_sequence,
@@ -22,6 +23,7 @@ from dofview.options import (
     camera_from_args,
     lens_from_args,
     load_scene_arg,
+    needs_depths,
     number,
     say_notes,
     settings_from_args,
@@ -50,26 +52,49 @@ def add_parser(sub) -> None:
 def run_render(args: argparse.Namespace) -> int:
     from dofview.rendering import get_backend
 
-    if args.output.suffix.lower() != ".exr":
-        raise DofviewError(f"{args.output}: output must be an .exr file")
-    for out in (args.output, args.png, args.video):  # before the render, not after it
-        if out is not None and not out.parent.is_dir():
-            raise DofviewError(f"{out}: folder {out.parent} does not exist")
+    check_outputs(args)
     if is_sequence(args):
         return run_sequence(args)
     settings = settings_from_args(args)
-    tm = tonemap_from_args(args)
     scene = load_scene_arg(args)
+    tm = tonemap_from_args(args, scene.colour_space)  # --tonemap auto follows the scene
     camera = camera_from_args(args, scene)
     renderer = get_backend(args.raster, scene)
-    focus = auto_focus_at(renderer, camera, settings, args.scene) if args.focus == "auto" else args.focus
-    lens = lens_from_args(args, camera, float(focus))
+    focus, span = focus_and_span(renderer, camera, settings, args.scene, args.focus, needs_depths(args))
+    lens = lens_from_args(args, camera, focus, span)
     stats = stats_from_args(args, renderer, tm, settings)
     save_render(renderer, camera, lens, tm, settings, str(args.scene), args.output, args.png, half=args.half,
                 lens_info=lens_info(args), stats=stats, lens_samples=args.lens_samples)
     say_notes(args)
     print(f"{args.output}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, aperture A={lens.aperture:.4g}, "
-          f"exposure ×{tm.exposure:.4g}" + (f"; {args.png}" if args.png else ""), file=sys.stderr)
+          f"exposure {tm.exposure:+.4g} EV" + (f"; {args.png}" if args.png else ""), file=sys.stderr)
     return 0
 
 
+def check_outputs(args: argparse.Namespace) -> None:
+    """Every output path, before anything is rendered (so a bad --png leaves no EXR behind): the
+    right ending, an existing folder that can be written to, and not a folder itself. A sequence's
+    numbered names are checked with frame 0 filled in."""
+    from dofview.sequence import check_video, frame_name
+
+    if args.output.suffix.lower() != ".exr":
+        raise DofviewError(f"{args.output}: output must be an .exr file")
+    if args.png is not None and args.png.suffix.lower() != ".png":
+        raise DofviewError(f"{args.png}: --png must name a .png file")
+    if args.video is not None:
+        check_video(args.video)
+    numbered = is_sequence(args)
+    for path in (args.output, args.png, args.video):
+        if path is None:
+            continue
+        try:
+            target = frame_name(path, 0) if numbered and path is not args.video else path
+        except (TypeError, ValueError):  # no frame number (check_pattern says so): checked as written
+            target = path
+        folder = target.parent
+        if not folder.is_dir():
+            raise DofviewError(f"{path}: folder {folder} does not exist")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise DofviewError(f"{path}: Permission denied: folder {folder} cannot be written to")
+        if target.is_dir():
+            raise DofviewError(f"{path}: is a folder, not a file name")

@@ -14,9 +14,11 @@ from dofview.frame import RenderSettings
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens
 from dofview.options import (
+    aperture_asked,
     camera_from_args,
     lens_from_args,
     load_scene_arg,
+    needs_depths,
     number,
     say_notes,
     settings_from_args,
@@ -29,7 +31,6 @@ from dofview.sequence import (
     Shot,
     camera_path,
     check_pattern,
-    check_video,
     focus_pull,
     render_sequence,
 )
@@ -71,7 +72,9 @@ def add_sequence_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--range", type=range_value, dest="frame_range", metavar="S:E",
                    help="render frames S…E only (0-based, inclusive; E past the end stops at the last frame): "
                         "one chunk of a shot spread over machines")
-    g.add_argument("--resume", action="store_true", help="skip frames whose files are already there")
+    g.add_argument("--resume", action="store_true",
+                   help="skip frames whose files are already there and whose headers record this command's camera, "
+                        "lens and settings; render the others again")
     g.add_argument("--video", type=Path, help="also put the frames together as an H.264 video (.mp4, .mov, .mkv; "
                                               "needs imageio-ffmpeg: pip install 'dofview[video]')")
     g.add_argument("--fps", type=number(0, None, lo_open=True, what="frame rate"), default=24.0,
@@ -84,20 +87,43 @@ def is_sequence(args: argparse.Namespace) -> bool:
             or args.frame_range is not None or args.resume or args.video is not None)
 
 
-def lens_info(args: argparse.Namespace) -> dict[str, float | None]:
-    """The physical-lens values an EXR header records."""
+def lens_info(args: argparse.Namespace) -> dict[str, object]:
+    """What an EXR header records of the lens options besides the strength used: the physical-lens
+    values and the aperture as asked (``asked``: e.g. "--blur 1%")."""
     return {"fnumber": args.fnumber, "focal_mm": args.focal_mm, "sensor_mm": args.sensor_mm,
-            "units_per_metre": args.units_per_metre}
+            "units_per_metre": args.units_per_metre, "asked": aperture_asked(args)}
+
+
+def focus_and_span(renderer: Renderer, camera: Camera, settings: RenderSettings, scene: Path,
+                   focus: float | str, span: bool) -> tuple[float, tuple[float, float] | None]:
+    """``focus`` resolved on ``camera`` ("auto": the depth under the image centre, or nearest to
+    it) and, when ``span``, the (near, far) depths in view (scene units) that ``--blur`` is measured
+    on, from pinhole passes (none when neither is needed). The depths are measured at the camera's
+    reference width, so that the same command at any size resolves the same strength, scaled."""
+    from dofview.rendering.focus import auto_focus, depth_range
+
+    pinhole = Lens(1.0, 0.0)
+    frame = renderer.render(camera, pinhole, settings) if focus == "auto" else None
+    if frame is not None:
+        focus = auto_focus(frame)
+        if focus is None:
+            raise DofviewError(f"{scene}: the view is empty, nothing to focus on; give --focus")
+    if not span:
+        return float(focus), None
+    if camera.width != camera.ref_width:
+        height = max(1, round(camera.height * camera.ref_width / camera.width))
+        frame = renderer.render(camera.resized(camera.ref_width, height), pinhole, settings)
+    elif frame is None:
+        frame = renderer.render(camera, pinhole, settings)
+    depths = depth_range(frame)
+    if depths is None:
+        raise DofviewError(f"{scene}: the view is empty, --blur has no depths to measure; give --aperture")
+    return float(focus), depths
 
 
 def auto_focus_at(renderer: Renderer, camera: Camera, settings: RenderSettings, scene: Path) -> float:
     """``--focus auto`` for ``camera``: the depth under the image centre (or nearest to it)."""
-    from dofview.rendering.focus import auto_focus
-
-    focus = auto_focus(renderer.render(camera, Lens(1.0, 0.0), settings))
-    if focus is None:
-        raise DofviewError(f"{scene}: the view is empty, nothing to focus on; give --focus")
-    return focus
+    return focus_and_span(renderer, camera, settings, scene, "auto", False)[0]
 
 
 def _views(args: argparse.Namespace) -> tuple[list[Camera], int, int]:
@@ -121,11 +147,9 @@ def run_sequence(args: argparse.Namespace) -> int:
         raise DofviewError("--focus A:B (a focus pull) needs --frames N")
     if args.frames is not None and args.frames > 1 and not pull and args.views is None:
         raise DofviewError("--frames N needs something to change: --focus A:B (a focus pull) or --views I:J")
-    if args.video is not None:
-        check_video(args.video)
     settings = settings_from_args(args)
-    tm = tonemap_from_args(args)
     scene = load_scene_arg(args)
+    tm = tonemap_from_args(args, scene.colour_space)  # --tonemap auto follows the scene
     if args.views is not None:
         cameras, first, last = _views(args)
         frames = args.frames or abs(last - first) + 1
@@ -161,8 +185,18 @@ def run_sequence(args: argparse.Namespace) -> int:
         focuses = [float(args.focus)] * frames
     shots = [Shot(i, cam, f) for i, (cam, f) in enumerate(zip(path, focuses))]
     out = Outputs(args.output, args.png, args.video, args.fps, args.half)
+    if args.blur is not None:  # one strength for the shot, from frame 0 whatever --range: every chunk agrees
+        first_focus, span = focus_and_span(renderer, path[0], settings, args.scene,
+                                           "auto" if math.isnan(focuses[0]) else focuses[0], needs_depths(args))
+        aperture = lens_from_args(args, path[0], first_focus, span).aperture
+
+        def lens_for(cam: Camera, focus: float) -> Lens:
+            return Lens(focus, aperture)
+    else:
+        def lens_for(cam: Camera, focus: float) -> Lens:
+            return lens_from_args(args, cam, focus)
     say_notes(args)
-    render_sequence(renderer, shots, lambda cam, focus: lens_from_args(args, cam, focus), tm, settings,
+    render_sequence(renderer, shots, lens_for, tm, settings,
                     str(args.scene), out, range(first_frame, last_frame + 1), args.resume, lens_info(args),
                     log=lambda line: print(line, file=sys.stderr), stats=stats_from_args(args, renderer, tm, settings),
                     lens_samples=args.lens_samples)

@@ -56,7 +56,8 @@ def load_scene(path: str | Path, progress: bool | Callable[[int, int], None] = T
     readers without such a parameter, and options given as None, are left alone.
 
     Raises:
-        DofviewError: a missing, unreadable or malformed file, with the path and what is wrong.
+        DofviewError: a missing, unreadable or malformed file, or one with no drawable Gaussian
+            (:meth:`GaussianScene.nothing_to_draw`), with the path and what is wrong.
     """
     path = Path(path)
     if path.is_dir() and (path / "meta.json").is_file():  # an unbundled SOG folder
@@ -67,11 +68,16 @@ def load_scene(path: str | Path, progress: bool | Callable[[int, int], None] = T
     accepted = inspect.signature(reader).parameters
     kwargs = {k: v for k, v in options.items() if k in accepted and v is not None}
     if callable(progress):
-        return reader(path, progress=progress, **kwargs)
-    if not progress:
-        return reader(path, **kwargs)
-    with Progress(f"loading {path.name}", 1, unit=" Gaussians") as bar:
-        return reader(path, progress=bar, **kwargs)
+        scene = reader(path, progress=progress, **kwargs)
+    elif not progress:
+        scene = reader(path, **kwargs)
+    else:
+        with Progress(f"loading {path.name}", 1, unit=" Gaussians") as bar:
+            scene = reader(path, progress=bar, **kwargs)
+    why = scene.nothing_to_draw()
+    if why is not None:
+        raise DofviewError(f"{path}: {why}")
+    return scene
 
 
 def save_scene(scene: GaussianScene, path: str | Path, **options: object) -> None:

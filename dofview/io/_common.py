@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
-from dofview.errors import DofviewError
+import numpy as np
+
+from dofview.errors import DofviewError, DofviewWarning
 
 
 def input_size(path: Path) -> int:
@@ -27,3 +30,17 @@ def input_size(path: Path) -> int:
     if size == 0:
         raise DofviewError(f"{path}: file is empty")
     return size
+
+
+def report_dropped(path: Path, ok: np.ndarray, what: str = "NaN or infinite values") -> None:
+    """Warn once (a :class:`DofviewWarning`) about the Gaussians a reader drops, ``~ok`` of ``ok``
+    (N,) bool, for having ``what``; a file whose every Gaussian is dropped has nothing to draw.
+
+    Raises:
+        DofviewError: every Gaussian of a non-empty file is dropped.
+    """
+    n, bad = ok.size, ok.size - int(np.count_nonzero(ok))
+    if n and bad == n:
+        raise DofviewError(f"{path}: no drawable Gaussian: all {n:,} have {what}")
+    if bad:
+        warnings.warn(f"{path}: dropped {bad} of {n} Gaussians with {what}", DofviewWarning, stacklevel=4)

@@ -4,12 +4,11 @@ turning decoded attribute arrays into a :class:`GaussianScene`, and unsigned-nor
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from dofview.errors import DofviewWarning
+from dofview.io._common import report_dropped
 from dofview.scene import GaussianScene
 
 LOG_SCALE_LIMIT = 87.0  # exp stays finite and normal in float32 inside ±87
@@ -49,7 +48,7 @@ def scene_from_arrays(path: Path, means: np.ndarray, quats_wxyz: np.ndarray, log
         the file name up to its first dot).
 
     Gaussians with a NaN or infinite value (a corrupt bound or codebook entry) are dropped with one
-    :class:`DofviewWarning` that counts them, as the .ply reader does.
+    :class:`DofviewWarning` that counts them, as the .ply reader does (all of them: a DofviewError).
     """
     q = np.asarray(quats_wxyz, np.float64)
     norm = np.linalg.norm(q, axis=1, keepdims=True)
@@ -59,11 +58,9 @@ def scene_from_arrays(path: Path, means: np.ndarray, quats_wxyz: np.ndarray, log
           & np.isfinite(opacities) & np.isfinite(sh_dc).all(1))
     if sh_rest is not None:
         ok &= np.isfinite(sh_rest).all((1, 2))
-    n = means.shape[0]
     scene = GaussianScene(means=means, quats=q, scales=scales, opacities=np.clip(opacities, 0.0, 1.0),
                           sh_dc=sh_dc, sh_rest=sh_rest, colour_space="srgb", name=name or path.name.split(".")[0])
+    report_dropped(path, ok)
     if not ok.all():
-        warnings.warn(f"{path}: dropped {int(n - ok.sum())} of {n} Gaussians with NaN or infinite values",
-                      DofviewWarning, stacklevel=3)
         scene = scene.subset(ok)
     return scene

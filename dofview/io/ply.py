@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import mmap
 import re
-import warnings
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from dofview.errors import DofviewError, DofviewWarning
+from dofview.errors import DofviewError
+from dofview.io._common import report_dropped
 from dofview.io._packed import LOG_SCALE_LIMIT
 from dofview.io.ply_header import Element, read_header
 from dofview.scene import COLOUR_SPACES, GaussianScene
@@ -96,7 +96,8 @@ def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = Non
 
     Opacity goes through a sigmoid, scales through exp (both clamped so that no value overflows),
     quaternions are normalised (a zero one becomes the identity). Gaussians with a NaN or infinite
-    value in any property are dropped with one :class:`DofviewWarning` that counts them.
+    value in any property are dropped with one :class:`DofviewWarning` that counts them (all of them:
+    a DofviewError).
     ``progress(done, total)`` is called as Gaussians are activated.
 
     Raises:
@@ -166,10 +167,8 @@ def _activate(path: Path, rows: np.ndarray, colour_space: str,
     good_q = norm > 1e-30
     quats[good_q] = (quats[good_q] / norm[good_q, None]).astype(np.float32)
     quats[~good_q] = (1.0, 0.0, 0.0, 0.0)
-    dropped = int(n - finite.sum())
-    if dropped:
-        warnings.warn(f"{path}: dropped {dropped} of {n} Gaussians with NaN or infinite values", DofviewWarning,
-                      stacklevel=3)
+    report_dropped(path, finite)
+    if not finite.all():
         keep = finite
         means, quats, scales, opacities, sh_dc = means[keep], quats[keep], scales[keep], opacities[keep], sh_dc[keep]
         rest = None if rest is None else rest[keep]

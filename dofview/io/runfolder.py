@@ -8,8 +8,8 @@ The Inria trainer (and the many that copy its layout) writes a model folder::
         point_cloud/iteration_7000/point_cloud.ply
         point_cloud/iteration_30000/point_cloud.ply
 
-:func:`find_run` turns what the user gave (that folder, or a scene file inside or beside such a
-folder) into the scene file to read and the ``cameras.json`` that belongs to it.
+:func:`find_run` turns what the user gave (that folder, or a scene file inside such a folder) into
+the scene file to read and the ``cameras.json`` that belongs to it.
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from pathlib import Path
 from dofview.errors import DofviewError
 
 CAMERAS_NAME = "cameras.json"
-CAMERA_SEARCH_LEVELS = 2  # iteration_N/point_cloud.ply → point_cloud/ → the run folder
 _ITERATION = re.compile(r"^iteration_(\d+)$")
 
 
@@ -31,7 +30,7 @@ class RunFolder:
 
     Attributes:
         scene: the scene file to read.
-        cameras: the ``cameras.json`` found for it, or None.
+        cameras: the run folder's ``cameras.json`` (an absolute path: it is said in full), or None.
         root: the run folder when the argument was one (or the scene sits in one), else None.
         iteration: the training iteration of ``scene`` when it came from ``point_cloud/iteration_N``.
         iterations: every iteration the run folder holds, ascending (empty for a plain file).
@@ -71,17 +70,11 @@ def _iterations(point_cloud: Path) -> dict[int, Path]:
     return found
 
 
-def _cameras_near(scene: Path) -> Path | None:
-    """``cameras.json`` beside ``scene`` or up to :data:`CAMERA_SEARCH_LEVELS` folders above it."""
-    folder = scene.parent
-    for _ in range(CAMERA_SEARCH_LEVELS + 1):
-        candidate = folder / CAMERAS_NAME
-        if candidate.is_file():
-            return candidate
-        if folder.parent == folder:
-            break
-        folder = folder.parent
-    return None
+def _in_run(scene: Path, root: Path, iteration: int, iterations: tuple[int, ...]) -> RunFolder:
+    """``scene`` of run folder ``root``, with the folder's cameras.json and cfg_args where it has them."""
+    cameras, cfg = root / CAMERAS_NAME, root / "cfg_args"
+    return RunFolder(scene, cameras.absolute() if cameras.is_file() else None, root, iteration, iterations,
+                     cfg if cfg.is_file() else None)
 
 
 def find_run(path: str | Path, iteration: int | None = None) -> RunFolder:
@@ -89,8 +82,10 @@ def find_run(path: str | Path, iteration: int | None = None) -> RunFolder:
 
     A folder must hold ``point_cloud/iteration_N/point_cloud.ply``; the highest N is taken unless
     ``iteration`` names one; a folder holding ``meta.json`` is an unbundled SOG scene, read as such.
-    A file is taken as it is, with the ``cameras.json`` beside it or up to two folders above it
-    (where the Inria trainer leaves it).
+    A file is taken as it is; it has the run folder's ``cameras.json`` only when it sits where the
+    trainer writes it, ``ROOT/point_cloud/iteration_N/point_cloud. py`` with ROOT holding
+    ``cameras.json``. A ``cameras.json`` that merely lies in a folder above some scene file belongs to
+    something else (issue 22: one above ``scenes/`` made ``scenes/biker.spz`` open looking at nothing).
 
     Raises:
         DofviewError: a folder without iterations, an iteration it does not have, or ``iteration``
@@ -109,17 +104,11 @@ def find_run(path: str | Path, iteration: int | None = None) -> RunFolder:
             iteration = its[-1]
         elif iteration not in found:
             raise DofviewError(f"{path}: no iteration {iteration} (it has {', '.join(map(str, its))})")
-        cameras = path / CAMERAS_NAME
-        cfg = path / "cfg_args"
-        return RunFolder(found[iteration], cameras if cameras.is_file() else None, path, iteration, its,
-                         cfg if cfg.is_file() else None)
+        return _in_run(found[iteration], path, iteration, its)
     if iteration is not None:
         raise DofviewError(f"{path}: --iteration picks an iteration of a run folder; give the folder, not a file")
-    cameras = _cameras_near(path)
     m = _ITERATION.match(path.parent.name)
-    if m and path.parent.parent.name == "point_cloud":
-        root = path.parent.parent.parent
+    if m and path.name == "point_cloud.ply" and path.parent.parent.name == "point_cloud":
         its = tuple(sorted(_iterations(path.parent.parent)))
-        cfg = root / "cfg_args"
-        return RunFolder(path, cameras, root, int(m.group(1)), its, cfg if cfg.is_file() else None)
-    return RunFolder(path, cameras)
+        return _in_run(path, path.parent.parent.parent, int(m.group(1)), its)
+    return RunFolder(path)

@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from dofview.errors import DofviewError
-from dofview.io._common import input_size
+from dofview.io._common import input_size, report_dropped
 from dofview.io.atomic import atomic_output
 from dofview.scene import SH_C0, GaussianScene
 
@@ -40,12 +40,7 @@ def read_splat(path: str | Path, progress: Callable[[int, int], None] | None = N
     ok = np.isfinite(means).all(1) & np.isfinite(scales).all(1) & (scales > 0).all(1)
     if progress:
         progress(n, n)
-    if not ok.all():
-        import warnings
-
-        from dofview.errors import DofviewWarning
-        warnings.warn(f"{path}: dropped {int(n - ok.sum())} of {n} Gaussians with NaN, infinite or non-positive "
-                      "values", DofviewWarning, stacklevel=3)
+    report_dropped(path, ok, "NaN, infinite or non-positive values")
     return GaussianScene(means=means[ok], quats=q[ok], scales=scales[ok], opacities=rgba[ok, 3],
                          sh_dc=(rgba[ok, :3] - 0.5) / SH_C0, colour_space="srgb", name=path.stem)
 

@@ -157,7 +157,7 @@ class Renderer(ABC):
         """Scene statistics of the last draw for ``operator``, from GPU histograms (a 32 KB read-back,
         not the frame); the same numbers as ``tonemap.stats.frame_stats(self.read().rgba, operator)``.
         ``domain``: the histogram operator's CDF range (log2), default the frame's [lo, hi]."""
-        return self._display.stats(self.colour_tex, self._encoded, operator, domain)
+        return self._display.stats(self.colour_tex, self._encoded, operator, domain, self.encoded_scene)
 
     def tonemap_to(self, target: moderngl.Framebuffer, viewport: tuple[int, int, int, int],
                    tm: Tonemap, focus_aid: bool = False, stats: Stats | None = None, same_frame: bool = False) -> None:
@@ -166,7 +166,8 @@ class Renderer(ABC):
         ``same_frame``: nothing was drawn since the last call (the bilateral base layer is kept)."""
         extra = {"u_focus_aid": focus_aid, "u_aperture": self.lens.aperture if self.lens else 0.0,
                  "u_inv_focus": float32_uniform(self.lens.inv_focus) if self.lens else 0.0}
-        self._display.run(self.colour_tex, self.depth_tex, self._encoded, target, viewport, tm, stats, extra, same_frame)
+        self._display.run(self.colour_tex, self.depth_tex, self._encoded, target, viewport, tm, stats, extra, same_frame,
+                          self.encoded_scene)
 
     def display_image(self, tm: Tonemap = Tonemap(), focus_aid: bool = False, stats: Stats | None = None) -> np.ndarray:
         """(H, W, 3) uint8: the last draw tonemapped on the GPU, as the viewer shows it."""

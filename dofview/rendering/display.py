@@ -1,7 +1,8 @@
 """The display pass every backend shares: scene statistics on the GPU and the tone-mapping pass.
 
 One fragment program per operator (``tonemap.frag`` with the operator's ``tonemap_<name>.glsl``
-as the OPERATOR define, compiled when first used); the histogram operator's CDF as a
+as the OPERATOR define, compiled when first used); the histogram operator's curve (built per
+exposure from the statistics' CDF, :meth:`~dofview.tonemap.histogram.Histogram.curve`) as a
 (N + 1)×1 R32F texture; the bilateral operator's base layer as two R32F passes
 (``bilateral.frag``). Statistics: ``stats_histogram.comp`` counts log2 histograms of the HDR frame
 into a small buffer, and only that buffer is read back (32 KB), never the frame; the numbers are
@@ -82,13 +83,15 @@ class DisplayPass:
         self.ctx.memory_barrier()
         return np.frombuffer(buf.read(size=channels * bins * 4), np.uint32).reshape(channels, bins).astype(np.int64)
 
-    def stats(self, colour: moderngl.Texture, encoded: bool, operator, domain: tuple[float, float] | None = None) -> Stats:
+    def stats(self, colour: moderngl.Texture, encoded: bool, operator, domain: tuple[float, float] | None,
+              display_referred: bool) -> Stats:
         """Statistics of the frame in ``colour`` for ``operator``; the histogram operator's CDF over
-        ``domain`` (log2; default the frame's own [lo, hi]). Twin: tonemap.stats.frame_stats."""
-        stats = stats_from_histograms(self.histograms(colour, encoded, *STATS_RANGE, STATS_BINS, 4))
+        ``domain`` (log2; None: the frame's own [lo, hi]); ``display_referred``: an sRGB-trained
+        scene. Twin: tonemap.stats.frame_stats."""
+        stats = stats_from_histograms(self.histograms(colour, encoded, *STATS_RANGE, STATS_BINS, 4), display_referred)
         if operator.needs_cdf:
             lo, hi = domain or cdf_domain(stats)
-            stats = with_cdf(stats, operator, self.histograms(colour, encoded, lo, hi, WARD_BINS, 1)[0], lo, hi)
+            stats = with_cdf(stats, self.histograms(colour, encoded, lo, hi, WARD_BINS, 1)[0], lo, hi)
         return stats
 
     # ---- the pass ----------------------------------------------------------------------------
@@ -105,7 +108,7 @@ class DisplayPass:
 
     def _input_uniforms(self, encoded: bool, tm: Tonemap) -> dict[str, object]:
         return {"u_colour": 0, "u_depth": 1, "u_encoded": encoded,
-                "u_background": tuple(float(c) for c in tm.background), "u_exposure": float(tm.exposure)}
+                "u_background": tuple(float(c) for c in tm.background), "u_exposure": float(tm.multiplier)}
 
     def _bilateral(self, colour: moderngl.Texture, depth: moderngl.Texture, encoded: bool, tm: Tonemap) -> None:
         """The base layer: the guide, then the two filter passes into ``self._base[2]``."""
@@ -129,14 +132,15 @@ class DisplayPass:
 
     def run(self, colour: moderngl.Texture, depth: moderngl.Texture, encoded: bool, target: moderngl.Framebuffer,
             viewport: tuple[int, int, int, int], tm: Tonemap, stats: Stats | None,
-            extra: dict[str, object], same_frame: bool = False) -> None:
+            extra: dict[str, object], same_frame: bool, display_referred: bool) -> None:
         """Tone map ``colour`` into ``target`` at ``viewport``. Adaptive operators need ``stats``
-        (taken from this frame on the GPU when None); ``extra``: the focus-aid uniforms;
+        (taken from this frame on the GPU when None, ``display_referred`` for an sRGB-trained
+        scene); ``extra``: the focus-aid uniforms;
         ``same_frame``: ``colour`` is unchanged since the last call, so the bilateral base layer
         (the costly part) is kept when ``tm`` is too."""
         op = tm.operator
         if op.adaptive and stats is None:
-            stats = self.stats(colour, encoded, op)
+            stats = self.stats(colour, encoded, op, None, display_referred)
         key = (tm, colour.size, encoded)
         if op.needs_base and not (same_frame and self._base_key == key):
             self._bilateral(colour, depth, encoded, tm)
@@ -148,9 +152,9 @@ class DisplayPass:
         colour.use(0)
         depth.use(1)
         values = {**self._input_uniforms(encoded, tm), "u_gamma": float(tm.gamma), **extra,
-                  **op.uniforms(stats, float(tm.exposure))}
+                  **op.uniforms(stats, float(tm.multiplier))}
         if op.needs_cdf:
-            self._cdf.write(np.asarray(stats.cdf, np.float32).tobytes())
+            self._cdf.write(np.asarray(op.curve(stats, float(tm.multiplier)), np.float32).tobytes())
             self._cdf.use(2)
             values["u_cdf"] = 2
         if op.needs_base:

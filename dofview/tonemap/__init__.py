@@ -3,8 +3,9 @@ colour transfers, and the operators by name in :data:`OPERATORS`.
 
 Each operator is one module: a frozen dataclass whose numpy ``apply`` is the twin of its GLSL pass
 ``rendering/glsl/tonemap_<name>.glsl`` (see :mod:`dofview.tonemap.operator`). ``clip`` is Eq. 7
-and the default; ``reinhard05``, ``histogram`` and ``bilateral`` adapt to scene statistics
-(:mod:`dofview.tonemap.stats`); ``aces`` (OpenColorIO), ``aces-fit``, ``pbr-neutral`` and ``filmic``
+and the default for sRGB-trained scenes (``--tonemap auto``: :func:`default_operator`);
+``reinhard05``, ``histogram`` and ``bilateral`` adapt to scene statistics
+(:mod:`dofview.tonemap.stats`), compressing only what the display cannot show; ``aces`` (OpenColorIO), ``aces-fit``, ``pbr-neutral`` and ``filmic``
 are fixed display curves.
 To add one: a module here, its .glsl, and one line in OPERATORS (the CLI's --tonemap choices, the
 viewer's combo box and the GPU-vs-numpy tests follow).
@@ -31,6 +32,9 @@ from dofview.tonemap.pbr_neutral import PbrNeutral
 from dofview.tonemap.reinhard05 import Reinhard05
 from dofview.tonemap.stats import Stats, StatsSmoother, frame_stats, pooled_stats
 
+AUTO = "auto"  # --tonemap's default: the operator follows the scene's colour space (default_operator)
+LINEAR_DEFAULT = "reinhard05"  # a linear HDR scene's: the most consistent along an orbit (docs/BENCHMARKS.md)
+
 OPERATORS: dict[str, type[Operator]] = {
     "clip": Clip,
     "reinhard05": Reinhard05,
@@ -42,6 +46,14 @@ OPERATORS: dict[str, type[Operator]] = {
     "filmic": Filmic,
 }
 
-__all__ = ["OPERATORS", "SCENE_ENCODING_GAMMA", "Aces", "AcesFit", "Bilateral", "Clip", "Filmic", "Histogram", "Operator",
+
+
+def default_operator(colour_space: str) -> str:
+    """The operator ``--tonemap auto`` picks: ``clip`` for an sRGB-trained scene (shown exactly as
+    trained), :data:`LINEAR_DEFAULT` for a linear HDR one, whose range clip would cut."""
+    return "clip" if colour_space == "srgb" else LINEAR_DEFAULT
+
+
+__all__ = ["AUTO", "LINEAR_DEFAULT", "OPERATORS", "SCENE_ENCODING_GAMMA", "Aces", "AcesFit", "Bilateral", "Clip", "Filmic", "Histogram", "Operator",
            "PbrNeutral", "Reinhard05", "Stats", "StatsSmoother", "Tonemap", "decode", "display", "encode",
-           "frame_stats", "pooled_stats", "to_uint8"]
+           "default_operator", "frame_stats", "pooled_stats", "to_uint8"]

@@ -1,4 +1,4 @@
-"""From blended values to linear light and to display (Eq. 7): C̄ = op(exposure·C)^(1/γ).
+"""From blended values to linear light and to display (Eq. 7): C̄ = op(2^EV·C)^(1/γ).
 
 Colour space matters. A standard 3DGS scene was fit to sRGB photos, so its blended values are
 display-encoded: they are decoded (with the scene's encoding gamma) before exposure is applied and
@@ -21,11 +21,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dofview.errors import DofviewError
+from dofview.lens import exposure_from_ev
 from dofview.tonemap.clip import Clip
 from dofview.tonemap.operator import Operator
 from dofview.tonemap.stats import Stats
 
 SCENE_ENCODING_GAMMA = 2.2  # the transfer of the photos a standard 3DGS scene was fit to
+EV_LIMIT = 100.0  # |EV| beyond this: a multiplier 2^EV outside float32's normal range soon after
 
 
 @dataclass(frozen=True)
@@ -33,23 +35,31 @@ class Tonemap:
     """Display settings.
 
     Attributes:
-        exposure: linear multiplier (2^EV or t/N²), > 0; adaptive operators apply it after
+        exposure: exposure in EV stops, as the CLI's ``--exposure``, the viewer's slider and the EXR
+            header's ``dofview:exposure``: the linear light is scaled by :attr:`multiplier` = 2^EV
+            (a shutter time t at f-number N is EV = log2(t/N²)). Adaptive operators apply it after
             normalising the scene by its statistics, so 0 EV is their automatic exposure.
         gamma: display gamma γ, > 0.
         background: display-encoded background colour, each in [0, 1].
         operator: the tone curve between exposure and gamma (an entry of OPERATORS).
     """
 
-    exposure: float = 1.0
+    exposure: float = 0.0
     gamma: float = 2.2
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     operator: Operator = field(default_factory=Clip)
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.exposure) and self.exposure > 0):
-            raise DofviewError(f"exposure multiplier must be finite and > 0, got {self.exposure}")
+        if not (np.isfinite(self.exposure) and abs(self.exposure) <= EV_LIMIT):
+            raise DofviewError(f"exposure must be a finite number of EV stops in [-{EV_LIMIT:g}, {EV_LIMIT:g}], "
+                               f"got {self.exposure}")
         if not (np.isfinite(self.gamma) and self.gamma > 0):
             raise DofviewError(f"gamma must be finite and > 0, got {self.gamma}")
+
+    @property
+    def multiplier(self) -> float:
+        """The linear factor 2^exposure that scales the light (Eq. 7's exposure)."""
+        return exposure_from_ev(self.exposure)
 
 
 def decode(c: np.ndarray) -> np.ndarray:
@@ -69,7 +79,8 @@ def display(linear: np.ndarray, encoded: bool, tm: Tonemap, stats: Stats | None 
     The background is composited in the blend's own space, as the scene was trained, then the
     result is exposed in linear light, tone mapped by ``tm.operator`` and gamma-encoded.
     ``stats``: the scene statistics adaptive operators need (:func:`dofview.tonemap.stats.frame_stats`;
-    taken from this image when omitted). ``depth``: (H, W) camera z, scene units (the bilateral
+    taken from this image when omitted, display-referred when ``encoded``: give them for the linear
+    blend of an sRGB scene). ``depth``: (H, W) camera z, scene units (the bilateral
     operator's depth term; 0 = nothing drawn).
     """
     linear = np.asarray(linear, dtype=np.float64)
@@ -79,13 +90,13 @@ def display(linear: np.ndarray, encoded: bool, tm: Tonemap, stats: Stats | None 
         lin = decode(encode(linear[..., :3]) + t * bg)
     else:
         lin = linear[..., :3] + t * decode(bg)
-    lin = np.nan_to_num(lin * tm.exposure, nan=0.0, posinf=1.0)
+    lin = np.nan_to_num(lin * tm.multiplier, nan=0.0, posinf=1.0)
     op = tm.operator
     if op.adaptive and stats is None:
         from dofview.tonemap.stats import frame_stats
 
-        stats = frame_stats(linear, op)
-    mapped = op.apply(lin, stats=stats, exposure=tm.exposure, alpha=linear[..., 3], depth=depth)
+        stats = frame_stats(linear, op, encoded)
+    mapped = op.apply(lin, stats=stats, exposure=tm.multiplier, alpha=linear[..., 3], depth=depth)
     return np.power(np.clip(mapped, 0.0, 1.0), 1.0 / tm.gamma)
 
 

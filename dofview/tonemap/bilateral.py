@@ -1,16 +1,18 @@
 """``bilateral``: Durand–Dorsey (2002) base/detail tone mapping on log luminance, with a depth term.
 
-    base = bilateral(log2 L),  detail = log2 L − base
-    log2 L_out = c·(base − log2 e − hi) + detail + log2 e,   c = min(log2(contrast) / (hi − lo), 1)
+    base = bilateral(log2 L),  detail = log2 L − base        (L in display-relative units)
+    log2 L_out = min(hi, 0) + c·(base − hi) + detail,   c = min(1, room / (hi − lo))
 
-so the bright end of the base (the 99th percentile ``hi``) maps to 1 at 0 EV and the exposure e
-acts after the compression. The base range is taken from the luminance percentiles rather than the
+with :func:`~dofview.tonemap.operator.display_fit`'s room below the top: log2(contrast) for a
+scene-referred frame (Durand–Dorsey's target/range), the room down to its own darks for a
+display-referred one, so c = 1 — the identity — while the frame fits under white and only a range
+above white is compressed. The base range is taken from the luminance percentiles rather than the
 base's own min/max (robust and available without another reduction). The bilateral filter is
 separable (a horizontal then a vertical pass, each a full bilateral along its line): weights are
 spatial Gaussian (σ_s a fraction of the image's longer side) × range Gaussian on log2 L (σ_r) ×
 depth Gaussian on log2 camera z (σ_z) — the depth term keeps the base from bleeding across depth
 edges, where the thesis saw halos (seed 004 §5.1.3) — × coverage of the neighbour (the
-background never enters). Colour is restored by ratio with a saturation exponent.
+background never enters). Colour is restored by ratio with the exponent s + (1 − s)·c (1 where nothing is compressed).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dofview.tonemap.operator import Operator, by_ratio, check_range, luminance
+from dofview.tonemap.operator import Operator, by_ratio, check_range, display_fit, luminance
 
 LOG_FLOOR = 1e-30  # log2 of a black pixel is log2(1e-30) ≈ −100: outside every range weight
 
@@ -34,14 +36,16 @@ class Bilateral(Operator):
         sigma_space: spatial σ_s as a fraction of the image's longer side (default 0.02).
         sigma_range: range σ_r in stops of luminance (default 1.33 = 0.4 log10 units).
         sigma_depth: depth σ_z in stops of camera depth (default 0.25); 0 turns the term off.
-        contrast: contrast ratio the base layer is compressed to (default 5).
+        contrast: contrast ratio a scene-referred frame's base layer is compressed to (default
+            50, not Durand–Dorsey's 5: at 5 the base spans 2.3 stops, the room is lifted to grey
+            and 3.4% of the HDR biker's orbit clipped, against 1.2% at 50 — docs/BENCHMARKS.md).
         saturation: colour exponent s in [0.3, 1] (default 0.7).
     """
 
     sigma_space: float = 0.02
     sigma_range: float = 1.33
     sigma_depth: float = 0.25
-    contrast: float = 5.0
+    contrast: float = 50.0
     saturation: float = 0.7
     name = "bilateral"
     ranges: ClassVar[dict[str, tuple[float, float]]] = {"sigma_space": (0.005, 0.1), "sigma_range": (0.2, 4.0), "sigma_depth": (0.0, 2.0), "contrast": (2.0, 100.0), "saturation": (0.3, 1.0)}
@@ -66,10 +70,11 @@ class Bilateral(Operator):
         return {"u_sigma_px": sigma, "u_radius": radius, "u_sigma_r": self.sigma_range, "u_sigma_z": self.sigma_depth}
 
     def uniforms(self, stats, exposure):
-        span = stats.hi - stats.lo
-        c = min(math.log2(self.contrast) / span, 1.0) if span > 1e-6 else 1.0
-        return {"u_compression": c, "u_hi": stats.hi, "u_log_exposure": math.log2(exposure),
-                "u_saturation": self.saturation}
+        fit = display_fit(stats, exposure, math.log2(self.contrast))
+        c = 1.0 if fit.fits else fit.room / (fit.hi - fit.lo)
+        return {"u_compression": c, "u_hi": fit.hi, "u_out_hi": fit.out_hi,
+                "u_gain_log2": fit.shift - math.log2(exposure),
+                "u_saturation": self.saturation + (1.0 - self.saturation) * c}
 
     def base(self, log_l: np.ndarray, mask: np.ndarray, depth: np.ndarray | None) -> np.ndarray:
         """(H, W) base layer of log2 L: the separable bilateral (twin of bilateral.frag)."""
@@ -110,6 +115,7 @@ class Bilateral(Operator):
         log_l = np.log2(np.maximum(lum, LOG_FLOOR))
         mask = covered(alpha) if alpha is not None else np.ones(lum.shape, bool)
         base = self.base(log_l, mask, depth)
-        log_out = u["u_compression"] * (base - u["u_log_exposure"] - u["u_hi"]) + (log_l - base) + u["u_log_exposure"]
+        base_x = base + u["u_gain_log2"]
+        log_out = u["u_out_hi"] + u["u_compression"] * (base_x - u["u_hi"]) + (log_l - base)
         lum_out = np.where(lum > 0, np.exp2(np.minimum(log_out, 64.0)), 0.0)
-        return np.clip(by_ratio(rgb, lum, lum_out, self.saturation), 0.0, 1.0)
+        return np.clip(by_ratio(rgb, lum, lum_out, u["u_saturation"]), 0.0, 1.0)

@@ -1,16 +1,23 @@
-"""``histogram``: Ward Larson's histogram adjustment (1997) with a linear ceiling.
+"""``histogram``: Ward Larson's histogram adjustment (1997) with a linear ceiling, solved exactly.
 
-On log2 luminance between the robust lo and hi (1st/99th percentiles, TONEMAP.md), WARD_BINS bins:
+On log2 luminance in display-relative units (:func:`~dofview.tonemap.operator.display_fit`; 0 =
+display white), between the robust lo and hi (1st/99th percentiles, TONEMAP.md), WARD_BINS bins
+of density p_b and width Δb:
 
-- ceiling (linear, not perceptual): clip each bin to t = T·Δb / log c, Δb the bin width, T the
-  current total, c = L_dmax/L_dmin the display contrast (the thesis prints this inverted);
-- a FIXED number of such passes (a count that varies between views made seams, seed 004 §6.2.2);
-  if T falls below the tolerance, or the scene's range fits the display, map linearly instead;
-- log L_d = log L_dmin + (log L_dmax − log L_dmin)·P(log L) with P the CDF (the thesis prints the
-  bracket without logs), display-linear L_d / L_dmax, colour by ratio (C/L)^s·L_d.
+- the curve's slope d log L_d / d log L is min(1, λ·p_b/Δb): histogram equalisation limited by
+  Ward's linear ceiling (contrast is never exaggerated), λ chosen so that the slopes add up to the
+  display's room below the top (``DisplayFit.room``: log2(ld_max/ld_min) for a scene-referred frame;
+  for a display-referred one the room down to its own darks, so only what lies above white is
+  compressed). This is the fixed point of Ward's iterated ceiling (t = T·Δb/log c with T the
+  trimmed total), solved by bisection instead of a count of passes that stops early (a varying
+  count made seams, seed 004 §6.2.2) — continuous in the statistics and the exposure;
+- if the range fits the room (the ceiling never binds) the slope is 1: the identity, Ward's
+  linear mapping; if even slope 1 on every occupied bin falls short, empty bins get the rest;
+- the top maps to min(hi, 0), slope 1 outside [lo, hi]; colour by ratio (C/L)^s·L_d with s from
+  1 (slope 1, nothing compressed) to ``saturation`` (slope 0).
 
-The CDF is a (WARD_BINS + 1)-entry table, piecewise linear in log L; on the GPU a 1-D texture.
-Exposure shifts log L before the lookup, so EV acts after the adaptation.
+The curve is a (WARD_BINS + 1)-entry table of log2 L_d at the bin edges, on the GPU a 1-D texture,
+built per exposure from the statistics' CDF (a table lookup: it depends on the exposure).
 """
 
 from __future__ import annotations
@@ -21,16 +28,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from dofview.tonemap.operator import Operator, by_ratio, check_range, luminance
+from dofview.tonemap.operator import Operator, by_ratio, check_range, display_fit, luminance
 
-
-def lookup(table: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Piecewise-linear table lookup at x ∈ [0, 1] (clamped), as tonemap_histogram.glsl does it."""
-    n = len(table) - 1
-    pos = np.clip(x, 0.0, 1.0) * n
-    i = np.minimum(np.floor(pos).astype(np.int64), n - 1)
-    f = pos - i
-    return table[i] * (1.0 - f) + table[i + 1] * f
+BISECTIONS = 60  # on log λ: λ to ~1e-9 relative, far below a display step
 
 
 @dataclass(frozen=True)
@@ -38,19 +38,17 @@ class Histogram(Operator):
     """Ward Larson histogram adjustment.
 
     Attributes:
-        ld_min, ld_max: display luminance range, cd/m² (default 0.3…300, contrast 1000:1).
-        saturation: colour exponent s in [0.3, 1] (default 0.7, against over-saturation).
-        passes: ceiling passes, fixed (default 4, the thesis's).
-        tolerance: the fraction of the original total below which the scene is mapped linearly.
+        ld_min, ld_max: display luminance range, cd/m² (default 0.3…300: a scene-referred frame's
+            room is log2(1000) ≈ 10 stops; only the ratio is used).
+        saturation: colour exponent s in [0.3, 1] where the curve compresses fully (default 0.7,
+            against over-saturation); 1 where it does not compress.
     """
 
     ld_min: float = 0.3
     ld_max: float = 300.0
     saturation: float = 0.7
-    passes: int = 4
-    tolerance: float = 0.025
     name = "histogram"
-    ranges: ClassVar[dict[str, tuple[float, float]]] = {"ld_min": (0.01, 10.0), "ld_max": (50.0, 2000.0), "saturation": (0.3, 1.0), "passes": (0, 8), "tolerance": (0.0, 0.2)}
+    ranges: ClassVar[dict[str, tuple[float, float]]] = {"ld_min": (0.01, 10.0), "ld_max": (50.0, 2000.0), "saturation": (0.3, 1.0)}
     glsl = "tonemap_histogram.glsl"
     adaptive = True
     needs_cdf = True
@@ -59,38 +57,52 @@ class Histogram(Operator):
         check_range("histogram display minimum (cd/m²)", self.ld_min, 1e-4, 1e4)
         check_range("histogram display maximum (cd/m²)", self.ld_max, self.ld_min * 1.01, 1e6)
         check_range("histogram saturation", self.saturation, 0.3, 1.0)
-        check_range("histogram ceiling passes", self.passes, 0, 32)
-        check_range("histogram tolerance", self.tolerance, 0.0, 1.0)
 
-    def cdf(self, hist: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, bool]:
-        """(WARD_BINS,) counts over log2 [lo, hi] → (CDF table (WARD_BINS + 1,), map linearly)."""
-        h = np.asarray(hist, np.float64).copy()
-        total0 = h.sum()
-        log_c = math.log2(self.ld_max / self.ld_min)
-        delta_b = (hi - lo) / len(h)
-        linear = total0 <= 0 or (hi - lo) <= log_c
-        for _ in range(self.passes):
-            t = h.sum()
-            if t <= self.tolerance * total0:
-                linear = True
-                break
-            h = np.minimum(h, t * delta_b / log_c)
-        table = np.concatenate([[0.0], np.cumsum(h)])
-        return (table / table[-1] if table[-1] > 0 else np.linspace(0.0, 1.0, len(table))), linear
+    @staticmethod
+    def slopes(density: np.ndarray, width: float, room: float) -> np.ndarray:
+        """(N,) slopes min(1, λ·p/Δb) of bins of ``density`` (sums to 1) and ``width`` stops whose
+        sum times the width is ``room`` stops (< N·width: the range does not fit)."""
+        occupied = density > 0
+        if occupied.sum() * width <= room:  # even slope 1 everywhere occupied falls short
+            rest = (room - occupied.sum() * width) / max((~occupied).sum() * width, 1e-30)
+            return np.where(occupied, 1.0, min(rest, 1.0))
+        lo, hi = math.log(max(room, 1e-30)), math.log(width / density[occupied].min())
+        for _ in range(BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            if np.minimum(1.0, math.exp(mid) * density / width).sum() * width > room:
+                hi = mid
+            else:
+                lo = mid
+        return np.minimum(1.0, math.exp(0.5 * (lo + hi)) * density / width)
+
+    def curve(self, stats, exposure: float) -> np.ndarray:
+        """(WARD_BINS + 1,) log2 display luminance at the bin edges of [cdf_lo, cdf_hi] (exposed,
+        display-relative) at ``exposure`` (multiplier)."""
+        fit = display_fit(stats, exposure, math.log2(self.ld_max / self.ld_min), (stats.cdf_lo, stats.cdf_hi))
+        density = np.diff(np.asarray(stats.cdf, np.float64))
+        width = (fit.hi - fit.lo) / len(density)
+        slope = np.ones_like(density) if fit.fits else self.slopes(density, width, fit.room)
+        return fit.out_hi - np.concatenate([np.cumsum((slope * width)[::-1])[::-1], [0.0]])
 
     def uniforms(self, stats, exposure):
-        return {"u_cdf_lo": stats.cdf_lo, "u_cdf_hi": stats.cdf_hi,
-                "u_linear": bool(stats.linear), "u_hi": stats.hi, "u_contrast": self.ld_min / self.ld_max,
+        fit = display_fit(stats, exposure, math.log2(self.ld_max / self.ld_min), (stats.cdf_lo, stats.cdf_hi))
+        return {"u_gain_log2": fit.shift - math.log2(exposure), "u_dom_lo": fit.lo, "u_dom_hi": fit.hi,
                 "u_saturation": self.saturation, "u_cdf_n": len(stats.cdf) - 1}
 
     def apply(self, rgb, *, stats=None, exposure=1.0, alpha=None, depth=None) -> np.ndarray:
         u = self.uniforms(stats, exposure)
+        table = self.curve(stats, exposure)
+        n, lo, hi = u["u_cdf_n"], u["u_dom_lo"], u["u_dom_hi"]
         rgb = np.maximum(rgb, 0.0)
         lum = luminance(rgb)
-        if stats.linear:
-            lum_out = np.minimum(lum / 2.0 ** u["u_hi"], 1.0)
-        else:
-            log_l = np.log2(np.maximum(lum, 1e-30))
-            p = lookup(stats.cdf, (log_l - stats.cdf_lo) / (stats.cdf_hi - stats.cdf_lo))
-            lum_out = np.where(lum > 0, np.power(u["u_contrast"], 1.0 - p), 0.0)
-        return np.clip(by_ratio(rgb, lum, lum_out, self.saturation), 0.0, 1.0)
+        log_l = np.log2(np.maximum(lum, 1e-30)) + u["u_gain_log2"]
+        pos = (log_l - lo) / (hi - lo) * n
+        i = np.clip(np.floor(pos), 0, n - 1).astype(np.int64)
+        f = pos - i
+        inside = (pos >= 0) & (pos <= n)
+        slope = np.where(inside, (table[i + 1] - table[i]) / ((hi - lo) / n), 1.0)
+        log_out = np.where(pos < 0, table[0] + log_l - lo,
+                           np.where(pos > n, table[n] + log_l - hi, table[i] * (1.0 - f) + table[i + 1] * f))
+        lum_out = np.where(lum > 0, np.exp2(np.minimum(log_out, 64.0)), 0.0)
+        s = self.saturation + (1.0 - self.saturation) * np.clip(slope, 0.0, 1.0)
+        return np.clip(by_ratio(rgb, lum, lum_out, s[..., None]), 0.0, 1.0)

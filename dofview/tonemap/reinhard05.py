@@ -1,16 +1,22 @@
-"""``reinhard05``: the Reinhard–Devlin photoreceptor (2005), per channel, with robust statistics.
+"""``reinhard05``: the Reinhard–Devlin photoreceptor (2005), compressing only what the display
+cannot show.
 
-On key-normalised input C = 0.18·e·C_scene / 2^key (e the exposure, so EV acts after normalising):
+Input in display-relative units x = g·e·C (:func:`~dofview.tonemap.operator.display_shift`: g = 1
+for a display-referred frame, whose values are display values; the automatic key over the
+log-average for a scene-referred one, so a low-key scene stays low-key). W = max(1, x at the 99th
+percentile of the brightest channel) is the white: 1 when the frame fits under display white.
+With ν = 1 − 1/W, the share of the top that lies beyond the display:
 
-    I_local,i = c_a·C_i + (1 − c_a)·L            I_global,i = c_a·C_i,av + (1 − c_a)·L_av
+    I_local,i = c_a·x_i + (1 − c_a)·L          I_global,i = c_a·x_i,av + (1 − c_a)·L_av
     I_a,i     = l_a·I_local,i + (1 − l_a)·I_global,i
-    C'_i      = C_i / (C_i + (e^(−b)·I_a,i)^m)
+    σ_i       = σ_0·(e^(−b)·I_a,i / L_av)^(m·ν),    σ_0 = 1/ν = W/(W − 1)
+    x'_i      = x_i / (x_i + σ_i),   shown as x'_i / x'(W)  (a grey pixel at W, adapted alike)
 
-with the averages C_i,av, L_av the log-averages (robust; the paper's arithmetic means move with
-one hot pixel), m = 0.3 + 0.7·k^1.4, k = (log L_hi − log L_av)/(log L_hi − log L_lo) from the
-1st/99th percentiles (not min/max), and the result divided by the curve at the 99th percentiles of
-L and of each channel, so the 99th percentile maps to 1 (the thesis normalises by the output's min and max, which one hot pixel moves;
-seed 004 §5.1.5, TONEMAP.md; stretching from L_lo as well over-saturated low-range frames).
+At the global adaptation level σ = σ_0 gives the curve x·W/(x·(W − 1) + W): slope 1 at black (the
+darks keep their display values), W → 1 the identity (a frame that fits is shown as it is; ν = 0
+switches the adaptation off too), W → ∞ Reinhard's x/(1 + x) with σ_i = (e^(−b)·I_a,i/L_av)^m, the
+paper's semi-saturation on key-normalised input. m = 0.3 + 0.7·k^1.4, k = (log L_hi − log L_av) /
+(log L_hi − log L_lo) from the 1st/99th percentiles (seed 004 §5.1.5, robust: no min/max).
 """
 
 from __future__ import annotations
@@ -21,10 +27,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from dofview.tonemap.operator import Operator, check_range, luminance
+from dofview.tonemap.operator import Operator, check_range, display_shift, luminance
 
-DEGENERATE_SPAN = 1e-3  # a grey curve span below this (a constant frame) is not normalised
-MIDDLE_GREY = 0.18  # the key is normalised to it (Reinhard 2002's a), so b = 0 gives a mid-grey key
+FITS = 1e-4  # ν below this: the frame fits under white, shown unchanged (σ_0 = 1/ν would overflow)
 
 
 @dataclass(frozen=True)
@@ -32,18 +37,19 @@ class Reinhard05(Operator):
     """Reinhard–Devlin photoreceptor.
 
     Attributes:
-        b: brightness b, −8…8 (default 0; larger is brighter).
+        b: brightness b, −8…8 (default 0; larger is brighter where the range is compressed).
         m: contrast m in (0, 1], or 0 = automatic from the statistics (default).
-        c_a: chromatic adaptation c_a in [0, 1] (0: adapt to luminance; 1: per channel). Default
-            0.5, not the paper's 0: at 0 a saturated colour's channel (lamp.ply's blue cube) runs
-            to 1 and 7.4% of lamp view 0 clipped, against 1.2% at 0.5.
-        l_a: light adaptation l_a in [0, 1] (1: to the pixel itself; 0: to the scene average).
+        c_a: chromatic adaptation c_a in [0, 1] (0: adapt to luminance, the default; 1: per channel).
+        l_a: light adaptation l_a in [0, 1] (1: to the pixel itself; 0: to the scene average, the
+            default, not the paper's 1: adapting to the pixel lifts its darks by (1/x)^(m·ν) —
+            the black leather of tests/data/biker.spz turned silver — where only the range beyond
+            white needs compressing).
     """
 
     b: float = 0.0
     m: float = 0.0
-    c_a: float = 0.5
-    l_a: float = 1.0
+    c_a: float = 0.0
+    l_a: float = 0.0
     name = "reinhard05"
     ranges: ClassVar[dict[str, tuple[float, float]]] = {"b": (-8.0, 8.0), "m": (0.0, 1.0), "c_a": (0.0, 1.0), "l_a": (0.0, 1.0)}
     glsl = "tonemap_reinhard05.glsl"
@@ -62,36 +68,33 @@ class Reinhard05(Operator):
         k = min(max((stats.hi - stats.key) / span, 0.0), 1.0) if span > 1e-6 else 0.0
         return 0.3 + 0.7 * k ** 1.4
 
-    def _top(self, stats, m: float) -> float:
-        """The curve's output at the 99th percentiles: the brightest channel of a pixel whose
-        luminance and channels sit at their 99th percentiles (key-normalised, unexposed)."""
-        lum = MIDDLE_GREY * 2.0 ** (stats.hi - stats.key)
-        top = 0.0
-        for c_hi, c_key in zip(stats.channel_hi, stats.channel_key):
-            c = MIDDLE_GREY * 2.0 ** (c_hi - stats.key)
-            i_global = self.c_a * MIDDLE_GREY * 2.0 ** (c_key - stats.key) + (1.0 - self.c_a) * MIDDLE_GREY
-            ia = self.l_a * (self.c_a * c + (1.0 - self.c_a) * lum) + (1.0 - self.l_a) * i_global
-            den = c + (math.exp(-self.b) * ia) ** m
-            top = max(top, c / den if den > 0 else 0.0)
-        return top
-
     def uniforms(self, stats, exposure):
-        m = self.contrast(stats)
-        v_lo, v_hi = 0.0, self._top(stats, m)
-        if v_hi - v_lo < DEGENERATE_SPAN:
-            v_lo, v_hi = 0.0, 1.0
-        cav = [exposure * MIDDLE_GREY * 2.0 ** (k - stats.key) for k in stats.channel_key]
-        return {"u_inv_key": MIDDLE_GREY * 2.0 ** -stats.key, "u_m": m, "u_b": self.b, "u_c_a": self.c_a, "u_l_a": self.l_a,
-                "u_c_av": tuple(cav), "u_l_av": exposure * MIDDLE_GREY, "u_v_lo": v_lo, "u_v_hi": v_hi}
+        shift = display_shift(stats, exposure)
+        gain = 2.0 ** (shift - math.log2(exposure))  # the exposed input is already ×e
+        top = max(stats.hi, *stats.channel_hi) + shift
+        white = max(1.0, 2.0 ** min(top, 126.0))
+        nu = 1.0 - 1.0 / white
+        l_av = 2.0 ** (stats.key + shift)
+        u = {"u_gain": gain, "u_identity": nu < FITS, "u_c_a": self.c_a, "u_l_a": self.l_a, "u_l_av": l_av,
+             "u_c_av": tuple(2.0 ** (k + shift) for k in stats.channel_key), "u_sigma0": 1.0, "u_power": 0.0,
+             "u_adapt": math.exp(-self.b) / l_av, "u_white_v": 1.0}
+        if nu >= FITS:
+            power = self.contrast(stats) * nu
+            sigma_w = (u["u_adapt"] * (self.l_a * white + (1.0 - self.l_a) * l_av)) ** power / nu
+            u.update(u_sigma0=1.0 / nu, u_power=power, u_white_v=white / (white + sigma_w))
+        return u
 
     def apply(self, rgb, *, stats=None, exposure=1.0, alpha=None, depth=None) -> np.ndarray:
         u = self.uniforms(stats, exposure)
-        c = np.maximum(rgb, 0.0) * u["u_inv_key"]
-        lum = luminance(c)[..., None]
-        i_local = self.c_a * c + (1.0 - self.c_a) * lum
+        x = np.maximum(rgb, 0.0) * u["u_gain"]
+        if u["u_identity"]:
+            return np.clip(x, 0.0, 1.0)
+        lum = luminance(x)[..., None]
+        i_local = self.c_a * x + (1.0 - self.c_a) * lum
         i_global = self.c_a * np.asarray(u["u_c_av"]) + (1.0 - self.c_a) * u["u_l_av"]
         ia = self.l_a * i_local + (1.0 - self.l_a) * i_global
-        den = c + np.power(math.exp(-self.b) * ia, u["u_m"])
+        sigma = u["u_sigma0"] * np.power(u["u_adapt"] * ia, u["u_power"])
+        den = x + sigma  # 0 only for a black channel adapted to itself (l_a = 1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            out = np.where(den > 0, c / den, 0.0)
-        return np.clip((out - u["u_v_lo"]) / (u["u_v_hi"] - u["u_v_lo"]), 0.0, 1.0)
+            v = np.where(den > 0, x / den, 0.0)
+        return np.clip(v / u["u_white_v"], 0.0, 1.0)

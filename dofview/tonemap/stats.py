@@ -7,8 +7,12 @@ a black 3DGS background never enters a log statistic), never from raw min/max:
   the scene by a power of two shifts the histogram by whole bins and the statistics exactly);
   ``lo``/``hi`` are the PERCENTILES of log2 Y interpolated inside their bin, ``key`` the mean
   log2 Y (log-average luminance), ``channel_key`` the same per channel;
-- pass 2 (histogram operator only): WARD_BINS bins of log2 Y between lo and hi, turned into the
-  operator's CDF.
+- pass 2 (histogram operator only): WARD_BINS bins of log2 Y between lo and hi, kept as their
+  cumulative distribution (the operator builds its ceiling-limited curve from it per exposure).
+
+``display_referred`` says what the values are: a standard (sRGB-trained) scene's are display
+values, 1 = display white, and the adaptive operators leave them alone where they fit the display;
+a linear HDR scene's have no unit, and the operators place them by their statistics.
 
 The viewer builds the same histograms on the GPU (rendering/glsl/stats_histogram.comp) and reads
 back only them; :func:`log_histograms` is the CPU twin with the same binning, so both give the
@@ -30,7 +34,10 @@ STATS_BINS = 2048
 STATS_RANGE = (-32.0, 32.0)  # log2 radiance; 32 bins per stop
 WARD_BINS = 4096
 PERCENTILES = (1.0, 99.0)
-SMOOTHING_T0_S = 0.15  # t0 of S_t = w·S_(t−1) + (1−w)·S, w = exp(−Δt/t0)
+# t0 of S_t = w·S_(t−1) + (1−w)·S, w = exp(−Δt/t0). Not the thesis's 0.15 s: along a 24-frame
+# orbit (dofview.bench.tonemap_consistency) 0.5 s cut the display change the tone curve alone makes
+# at 0.15 s by 59–90% on lamp.ply and 20–44% on the HDR biker (docs/BENCHMARKS.md)
+SMOOTHING_T0_S = 0.5
 CRUSHED_BELOW = 16  # an 8-bit pixel whose channels are all < 16 (linear < 0.0033 at γ 2.2) is crushed
 
 
@@ -43,9 +50,13 @@ class Stats:
         key: mean log2 Y (log2 of the log-average luminance).
         channel_key: (3,) mean log2 R, G, B.
         channel_hi: (3,) 99th percentile of log2 R, G, B.
+        peak: mean log2 Y of the brightest 1% (above the 99th percentile): the automatic key's top,
+            which a lamp under 1% of the pixels still raises, continuously with its share.
         count: covered pixels the statistics came from (0: nothing covered; the values are 0).
-        cdf: (WARD_BINS + 1,) the histogram operator's CDF over [cdf_lo, cdf_hi] (log2 Y), or None;
-            with ``linear`` True the scene fits the display and is mapped linearly instead.
+        cdf: (WARD_BINS + 1,) the cumulative distribution of log2 Y over [cdf_lo, cdf_hi] at the
+            bin edges (0 … 1; the histogram operator's input), or None.
+        display_referred: the frame's values are display values (an sRGB-trained scene) rather
+            than scene radiance of arbitrary unit (a linear HDR scene).
     """
 
     lo: float = 0.0
@@ -53,23 +64,24 @@ class Stats:
     key: float = 0.0
     channel_key: tuple[float, float, float] = (0.0, 0.0, 0.0)
     channel_hi: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    peak: float = 0.0
     count: int = 0
     cdf: np.ndarray | None = None
     cdf_lo: float = 0.0
     cdf_hi: float = 0.0
-    linear: bool = False
+    display_referred: bool = False
 
     def scalars(self) -> np.ndarray:
-        return np.array([self.lo, self.hi, self.key, *self.channel_key, self.cdf_lo, self.cdf_hi, *self.channel_hi],
-                        np.float64)
+        return np.array([self.lo, self.hi, self.key, *self.channel_key, self.cdf_lo, self.cdf_hi, *self.channel_hi,
+                         self.peak], np.float64)
 
     def to_json(self) -> str:
         """The EXR header form (the CDF as its value at every 256th entry)."""
         d = {"lo_log2": self.lo, "hi_log2": self.hi, "key_log2": self.key, "channel_key_log2": list(self.channel_key),
-             "channel_hi_log2": list(self.channel_hi),
-             "covered_pixels": self.count, "percentiles": list(PERCENTILES)}
+             "channel_hi_log2": list(self.channel_hi), "peak_log2": self.peak,
+             "covered_pixels": self.count, "percentiles": list(PERCENTILES), "display_referred": self.display_referred}
         if self.cdf is not None:
-            d.update(cdf_lo_log2=self.cdf_lo, cdf_hi_log2=self.cdf_hi, linear=self.linear,
+            d.update(cdf_lo_log2=self.cdf_lo, cdf_hi_log2=self.cdf_hi,
                      cdf_every_256=[round(float(v), 6) for v in self.cdf[::256]])
         return json.dumps(d)
 
@@ -107,24 +119,35 @@ def _percentile(h: np.ndarray, p: float, lo: float, width: float) -> float:
     return lo + (i + frac) * width
 
 
-def stats_from_histograms(hist: np.ndarray) -> Stats:
+def _tail_mean(h: np.ndarray, p: float, lo: float, width: float) -> float:
+    """Mean value of the counts above the p-th percentile of histogram ``h`` (bin centres; the
+    percentile's bin counted by its share above it)."""
+    c = np.cumsum(h, dtype=np.float64)
+    above = np.clip(c - p / 100.0 * c[-1], 0.0, h)  # counts of each bin above the percentile
+    centres = lo + (np.arange(len(h)) + 0.5) * width
+    return float(above @ centres / above.sum()) if above.sum() > 0 else lo + (len(h) - 0.5) * width
+
+
+def stats_from_histograms(hist: np.ndarray, display_referred: bool) -> Stats:
     """Pass-1 histograms (4, STATS_BINS) → :class:`Stats` (no CDF)."""
     lo, hi = STATS_RANGE
     width = (hi - lo) / STATS_BINS
     count = int(hist[0].sum())
     if count == 0:
-        return Stats()
+        return Stats(display_referred=display_referred)
     centres = lo + (np.arange(STATS_BINS) + 0.5) * width
     keys = [float(h @ centres / max(h.sum(), 1)) for h in hist]
     his = [float(_percentile(h, PERCENTILES[1], lo, width)) for h in hist]
     return Stats(lo=float(_percentile(hist[0], PERCENTILES[0], lo, width)), hi=his[0], key=keys[0],
-                 channel_key=(keys[1], keys[2], keys[3]), channel_hi=(his[1], his[2], his[3]), count=count)
+                 channel_key=(keys[1], keys[2], keys[3]), channel_hi=(his[1], his[2], his[3]), count=count,
+                 peak=_tail_mean(hist[0], PERCENTILES[1], lo, width), display_referred=display_referred)
 
 
-def with_cdf(stats: Stats, operator, hist: np.ndarray, lo: float, hi: float) -> Stats:
-    """``stats`` with the histogram operator's CDF from a pass-2 histogram over [lo, hi]."""
-    cdf, linear = operator.cdf(hist, lo, hi)
-    return replace(stats, cdf=cdf, cdf_lo=lo, cdf_hi=hi, linear=linear)
+def with_cdf(stats: Stats, hist: np.ndarray, lo: float, hi: float) -> Stats:
+    """``stats`` with the cumulative distribution of a pass-2 histogram over [lo, hi]."""
+    c = np.concatenate([[0.0], np.cumsum(np.asarray(hist, np.float64))])
+    cdf = c / c[-1] if c[-1] > 0 else np.linspace(0.0, 1.0, len(c))
+    return replace(stats, cdf=cdf, cdf_lo=lo, cdf_hi=hi)
 
 
 def cdf_domain(stats: Stats) -> tuple[float, float]:
@@ -133,19 +156,20 @@ def cdf_domain(stats: Stats) -> tuple[float, float]:
     return mid - half, mid + half
 
 
-def frame_stats(linear: np.ndarray, operator) -> Stats:
-    """Statistics of one (H, W, 4) linear RGBA frame for ``operator`` (CPU path)."""
-    return pooled_stats([linear], operator)
+def frame_stats(linear: np.ndarray, operator, display_referred: bool = False) -> Stats:
+    """Statistics of one (H, W, 4) linear RGBA frame for ``operator`` (CPU path);
+    ``display_referred``: the scene is an sRGB-trained one (``scene.colour_space == "srgb"``)."""
+    return pooled_stats([linear], operator, display_referred)
 
 
-def pooled_stats(frames, operator) -> Stats:
+def pooled_stats(frames, operator, display_referred: bool = False) -> Stats:
     """Statistics pooled over several (H, W, 4) linear RGBA frames: ``--stats joint`` over all
     training views (seed 004 §5.1.6). Histograms add, so pooling is exact."""
     frames = list(frames)
-    stats = stats_from_histograms(sum(log_histograms(f, *STATS_RANGE, STATS_BINS, 4) for f in frames))
+    stats = stats_from_histograms(sum(log_histograms(f, *STATS_RANGE, STATS_BINS, 4) for f in frames), display_referred)
     if operator.needs_cdf:
         lo, hi = cdf_domain(stats)
-        stats = with_cdf(stats, operator, sum(log_histograms(f, lo, hi, WARD_BINS, 1)[0] for f in frames), lo, hi)
+        stats = with_cdf(stats, sum(log_histograms(f, lo, hi, WARD_BINS, 1)[0] for f in frames), lo, hi)
     return stats
 
 
@@ -177,7 +201,8 @@ class StatsSmoother:
         if cdf is not None and self.state.cdf is not None and self.state.cdf.shape == cdf.shape:
             cdf = w * self.state.cdf + (1.0 - w) * cdf
         self.state = Stats(lo=s[0], hi=s[1], key=s[2], channel_key=(s[3], s[4], s[5]), count=stats.count, cdf=cdf,
-                           cdf_lo=s[6], cdf_hi=s[7], linear=stats.linear, channel_hi=(s[8], s[9], s[10]))
+                           cdf_lo=s[6], cdf_hi=s[7], channel_hi=(s[8], s[9], s[10]), peak=s[11],
+                           display_referred=stats.display_referred)
         return self.state
 
 

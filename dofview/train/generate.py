@@ -170,7 +170,7 @@ def _shoot(renderer, cam: Camera, pinhole, capture: Capture, render: RenderSetti
     }
     lens = PhysicalLens(capture.focal_mm, fnumber, capture.sensor_mm, capture.units_per_metre).lens(cam.fx, focus)
     frame = renderer.render(cam, lens, render)
-    photo = to_uint8(display(frame.rgba, frame.encoded, Tonemap(exposure=exposure, gamma=capture.gamma)))
+    photo = to_uint8(display(frame.rgba, frame.encoded, Tonemap(exposure=math.log2(exposure), gamma=capture.gamma)))
     name = f"images/view_{i:03d}.png"
     exif = {"exposure_time": settings["exposure_time"], "f_number": fnumber, "focal_length_mm": capture.focal_mm,
             "subject_distance_m": focus / capture.units_per_metre}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 DEFAULT_WINDOW = (1280, 800)
@@ -26,13 +27,14 @@ def add_parser(subparsers) -> None:
 def _initial_settings(args: argparse.Namespace, scene_colour_space: str):
     """Panel values from the render options (lens values beyond these come with the focus)."""
     from dofview.options import settings_from_args, tonemap_from_args
+    from dofview.tonemap import AUTO
     from dofview.viewer.settings import ViewerSettings
 
-    tm = tonemap_from_args(args)  # also refuses --shutter without --fnumber
+    tm = tonemap_from_args(args, scene_colour_space)  # also refuses --shutter without --fnumber
     s = ViewerSettings(colour_space=scene_colour_space, render=settings_from_args(args), gamma=tm.gamma,
                        ev=args.exposure, background=tm.background, sensor_mm=args.sensor_mm,
                        units_per_metre=args.units_per_metre, tonemap_operator=tm.operator.name,
-                       tonemap_params=tm.operator.params())
+                       tonemap_params=tm.operator.params(), tonemap_auto=args.tonemap == AUTO)
     s.physical = args.fnumber is not None or args.focal_mm is not None
     s.fnumber = args.fnumber or s.fnumber
     s.focal_mm = args.focal_mm or s.focal_mm
@@ -51,7 +53,6 @@ def run_view(args: argparse.Namespace) -> int:
         up_from_args,
     )
     from dofview.viewer.script import ScriptRunner, load_script
-    from dofview.viewer.settings import START_COC_PX
     from dofview.viewer.window import check_display
 
     check_display()
@@ -76,15 +77,20 @@ def run_view(args: argparse.Namespace) -> int:
     names = [c.name for c in cameras]
     if args.cameras and start.name in names:
         viewer.view_index = names.index(start.name)
+    # R and U frame the scene as it opened without cameras (the size and field of view it was framed for)
+    viewer.framing = (start.width, start.height, 50.0 if cameras else start.fov_x_deg)
     try:
-        if args.focus == "auto":
-            viewer.auto_focus()
-        else:
-            viewer.pinhole_pass(sort=True)  # the depths in view scale the sliders and the first aperture
-            settings.focus = float(args.focus)
-        lens = lens_from_args(args, viewer.camera(), settings.focus)  # refuses conflicting lens options
-        settings.aperture = lens.aperture if args.aperture is not None or settings.physical \
-            else viewer.aperture_for_blur(START_COC_PX)
+        viewer.start_focus = None if args.focus == "auto" else float(args.focus)
+        viewer.frame_lens()
+        # refuses conflicting lens options; --aperture and --blur hold at the start camera's reference width
+        lens = lens_from_args(args, replace(viewer.camera(), ref_width=start.ref_width), settings.focus,
+                              viewer.depth_span)
+        if args.aperture is not None:
+            viewer.start_aperture = settings.aperture = lens.aperture
+        elif args.blur is not None:  # R, U and N resolve it again on their view's depths
+            viewer.start_blur, settings.aperture = args.blur, lens.aperture
+        elif settings.physical:
+            settings.aperture = lens.aperture  # where the slider starts if the physical lens is turned off
         if args.stats == "joint" and settings.operator().adaptive:
             viewer.lock_joint_stats()
         runner = ScriptRunner(actions, str(args.script)) if actions is not None else None

@@ -26,7 +26,15 @@ ERROR_COLOUR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
 # portable_file_dialogs drives one of these programs on Linux; without one, paths are typed in
 DIALOG_PROGRAMS = ("zenity", "kdialog", "matedialog", "qarma")
 # the default ImGui font covers Latin-1 only: UI strings stay within it
-_FIXED = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+# no_nav_inputs: Tab is the viewer's fly-mode key, so ImGui's Tab (jump to the next field, where
+# W A S D would then be typed) is off
+_FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+          | imgui.WindowFlags_.no_nav_inputs)
+MESSAGE_LINES = 3  # the status message's fixed area, so a message never moves the widgets below it
+# a slider's handle is narrower than a digit and half transparent, so the value stays readable
+GRAB_PX = 4.0
+GRAB_COLOUR = imgui.ImVec4(0.26, 0.59, 0.98, 0.5)
+GRAB_ACTIVE_COLOUR = imgui.ImVec4(0.26, 0.59, 0.98, 0.7)
 
 
 _CLAMP = imgui.SliderFlags_.always_clamp  # Ctrl+click typing stays in range too (no zero f-number)
@@ -38,6 +46,18 @@ def _slider(label: str, value: float, lo: float, hi: float, fmt: str = "%.3f") -
 
 def _log_slider(label: str, value: float, lo: float, hi: float, fmt: str = "%.4g") -> tuple[bool, float]:
     return imgui.slider_float(label, value, lo, hi, fmt, _CLAMP | imgui.SliderFlags_.logarithmic)
+
+
+def _tip(text: str) -> None:
+    """A tooltip on the last widget (also when it is disabled): the technical name and option."""
+    imgui.set_item_tooltip(text)
+
+
+def _mark(v: "Viewer", name: str) -> None:
+    """Remember where the last widget was drawn (window units) for the report: the tests check
+    that the layout holds still and fits."""
+    lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+    v.panel_layout[name] = [lo.x, lo.y, hi.x, hi.y]
 
 
 def _note(text: str, colour: imgui.ImVec4 | None = None) -> None:
@@ -54,6 +74,8 @@ def _lens(v: "Viewer") -> None:
     s = v.settings
     lo, hi = v.focus_range  # from the depths in view
     changed, focus = _log_slider("focus", s.focus, lo, hi)
+    _mark(v, "focus")
+    _tip("distance in focus, scene units (--focus); Ctrl+click to type")
     entered, typed = imgui.input_float("focus (type)", s.focus, 0.0, 0.0, "%.5g", imgui.InputTextFlags_.enter_returns_true)
     if changed or (entered and math.isfinite(typed) and typed > 0):
         v.set_focus(focus if changed else typed, smooth=False)
@@ -69,17 +91,33 @@ def _lens(v: "Viewer") -> None:
     else:
         top = max(v.aperture_for_blur(MAX_COC_PX), s.aperture)  # the largest blur in view reaches 30 px
         _, s.aperture = _log_slider("aperture A", s.aperture, 0.0, top)
-    imgui.text_disabled("blur radius R = A/2 * |1/z - 1/focus| px")
+        _tip("aperture strength A, px x scene unit (--aperture):\nblur radius R = A/2 * |1/z - 1/focus| px")
     _, s.smooth_focus = imgui.checkbox("smooth focus pull", s.smooth_focus)
+    _tip("click-to-focus eases over 0.15 s instead of jumping")
     imgui.same_line()
     _, s.focus_aid = imgui.checkbox("focus aid", s.focus_aid)
+    _tip("tint the sharp band: blur radius below one pixel (G)")
+
+
+def _splatting(v: "Viewer") -> None:
+    """How splats are cut and blurred: the renderer's settings, in user words (names in tooltips)."""
+    s = v.settings
     rs = s.render
-    changed_tau, tau = _slider("tau (min alpha)", rs.tau * 255.0, 0.0, 16.0, "%.2f/255")
-    changed_k, k = _slider("k (aperture cov.)", rs.k, 0.0, 1.0)
-    changed_norm, norm = imgui.combo("opacity norm.", OPACITY_NORMS.index(rs.opacity_norm), list(OPACITY_NORMS))
+    changed_tau, tau = _slider("min. opacity", rs.tau * 255.0, 0.0, 16.0, "%.2f/255")
+    _tip("tau, minimum alpha (--tau): contributions fainter than this are skipped\n"
+         "(lower: more exact, higher: faster)")
+    changed_k, k = _slider("blur spread", rs.k, 0.0, 1.0)
+    _tip("k, aperture covariance scale (--k): a blurred splat's covariance grows by k * R^2\n"
+         "(0.25: as wide as the thin lens's circle of confusion)")
+    changed_norm, norm = imgui.combo("blur brightness", OPACITY_NORMS.index(rs.opacity_norm), list(OPACITY_NORMS))
+    _tip("opacity normalisation (--opacity-norm): how a splat's opacity falls as the blur spreads it\n"
+         "(energy: its light is kept; none: opacity unchanged, blurred splats brighten)")
     changed_lin, lin = imgui.checkbox("blend in linear light", rs.blend_linear)
+    _tip("--blend-linear: decode sRGB-encoded colours to linear light before blending")
     imgui.begin_disabled(rs.kernel == "disk")  # the disk kernel is defined with the drop cut only
-    changed_cut, conserve = imgui.checkbox("tau cut conserves light", rs.cut == "conserve")
+    changed_cut, conserve = imgui.checkbox("keep the light of faint edges", rs.cut == "conserve")
+    _tip("--cut conserve: the min. opacity cut keeps each splat's whole light\n"
+         "(off: --cut drop, faint edges are dropped)")
     imgui.end_disabled()
     if changed_tau or changed_k or changed_norm or changed_lin or changed_cut:
         s.render = replace(rs, tau=tau / 255.0, k=k, opacity_norm=OPACITY_NORMS[norm], blend_linear=lin,
@@ -96,11 +134,11 @@ def _image(v: "Viewer") -> None:
         s.colour_space = COLOUR_SPACES[cs]
     imgui.begin_disabled(not s.physical)
     _, s.exposure_follows_aperture = imgui.checkbox("aperture changes exposure (t/N²)", s.exposure_follows_aperture)
+    _tip("exposure 2^EV * t/N²: stopping down darkens the image as a real lens does"
+         + ("" if s.physical else "\n(needs the physical lens)"))
     if s.exposure_follows_aperture:
         _, s.shutter_s = _log_slider("shutter t s", s.shutter_s, 1e-4, 30.0)
     imgui.end_disabled()
-    if not s.physical:
-        imgui.text_disabled("(t/N² needs the physical lens)")
     changed, bg = imgui.color_edit3("background", list(s.background))
     if changed:
         s.background = tuple(float(c) for c in bg)
@@ -117,7 +155,7 @@ def _tonemap(v: "Viewer") -> None:
     names = list(OPERATORS)
     changed, i = imgui.combo("tone mapping", names.index(s.tonemap_operator), names)
     if changed:
-        s.tonemap_operator, s.tonemap_params = names[i], {}
+        s.tonemap_operator, s.tonemap_params, s.tonemap_auto = names[i], {}, False
     op = s.operator()
     for f in fields(op):
         lo, hi = op.ranges[f.name]
@@ -158,15 +196,16 @@ def _camera(v: "Viewer") -> None:
 
 
 def _status(v: "Viewer") -> None:
+    """A fixed number of lines whatever the state, so the widgets below never move."""
     st = v.renderer.stats
-    ft = np.array(v.frame_ms, np.float32)
-    if ft.size:
-        imgui.text(f"frame {ft[-1]:.1f} ms  splat {v.render_ms:.1f} ms  sort {st.sort_ms:.1f} ms")
-        imgui.plot_lines("##frametimes", ft, overlay_text=f"max {ft.max():.0f} ms", scale_min=0.0,
-                         graph_size=imgui.ImVec2(-1, 40))
+    ft = np.array(v.frame_ms or [0.0], np.float32)
+    imgui.text(f"frame {ft[-1]:.1f} ms  splat {v.render_ms:.1f} ms  sort {st.sort_ms:.1f} ms")
+    imgui.plot_lines("##frametimes", ft, overlay_text=f"max {ft.max():.0f} ms", scale_min=0.0,
+                     graph_size=imgui.ImVec2(-1, 40))
     imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")
-    if v.progressive.samples:
-        imgui.text(f"thin lens: {v.progressive.samples} samples" + ("" if v.progressive.samples >= SHOW_AFTER else " (single pass shown)"))
+    n = v.progressive.samples
+    imgui.text(f"thin lens: {n} samples" + ("" if n >= SHOW_AFTER else " (single pass shown)") if n
+               else "thin lens: single pass")
     cam = v.camera()
     imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.scene_path.name}")
 
@@ -181,19 +220,19 @@ def _files(v: "Viewer") -> None:
     imgui.same_line()
     if imgui.button("copy as command"):
         v.copy_command()
+    _mark(v, "copy as command")
     imgui.set_next_item_width(-70)
-    entered, v.open_path = imgui.input_text("##open", v.open_path, imgui.InputTextFlags_.enter_returns_true)
+    entered, v.open_path = imgui.input_text_with_hint("##open", "scene to open (or drop a file)", v.open_path,
+                                                      imgui.InputTextFlags_.enter_returns_true)
     imgui.same_line()
     if (imgui.button("open") or entered) and v.open_path:
         v.open_file(v.open_path)
-    if any(shutil.which(p) for p in DIALOG_PROGRAMS):
+    if any(shutil.which(p) for p in DIALOG_PROGRAMS):  # without one, paths are typed or dropped
         if imgui.button("browse...") and v.dialog is None:
             from imgui_bundle import portable_file_dialogs as pfd
 
             v.dialog = pfd.open_file("Open a scene", str(v.scene_path.parent),
                                      ["Scenes", " ".join("*" + e for e in READERS), "Cameras", "*.json"])
-    else:
-        _note("(no dialog program: type a path or drop a file)")
     if v.dialog is not None and v.dialog.ready(0):
         chosen = v.dialog.result()
         v.dialog = None
@@ -202,13 +241,19 @@ def _files(v: "Viewer") -> None:
 
 
 def _messages(v: "Viewer") -> None:
+    """Loading bar, error or message in an area of :data:`MESSAGE_LINES` lines: a longer text is
+    cut there (whole in its tooltip), a shorter one leaves the rest empty."""
+    size = imgui.ImVec2(0, MESSAGE_LINES * imgui.get_text_line_height_with_spacing())
+    imgui.begin_child("##messages", size, 0, imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_nav_inputs)
     if v.loading is not None:
         imgui.text(f"loading {v.loading.path.name} ({v.loading.elapsed:.1f} s)")
         imgui.progress_bar(v.loading.fraction)
-    if v.error:
-        _note(v.error, ERROR_COLOUR)
-    elif v.message:
-        _note(v.message)
+    text = v.error or v.message
+    if text:
+        _note(text, ERROR_COLOUR if v.error else None)
+    imgui.end_child()
+    if text:
+        _tip(text)
 
 
 def _help(v: "Viewer") -> None:
@@ -233,10 +278,15 @@ def draw_ui(v: "Viewer") -> None:
     imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0), imgui.Cond_.always)
     imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, h), imgui.Cond_.always)
     imgui.begin("dofview", None, _FIXED | imgui.WindowFlags_.no_title_bar)
+    imgui.push_style_var(imgui.StyleVar_.grab_min_size, GRAB_PX)
+    imgui.push_style_color(imgui.Col_.slider_grab, GRAB_COLOUR)
+    imgui.push_style_color(imgui.Col_.slider_grab_active, GRAB_ACTIVE_COLOUR)
     imgui.push_item_width(-120)
     _messages(v)
     if imgui.collapsing_header("Lens", imgui.TreeNodeFlags_.default_open):
         _lens(v)
+    if imgui.collapsing_header("Splatting"):  # closed: the panel fits an 800-pixel-high window
+        _splatting(v)
     if imgui.collapsing_header("Image", imgui.TreeNodeFlags_.default_open):
         _image(v)
     if imgui.collapsing_header("Camera", imgui.TreeNodeFlags_.default_open):
@@ -246,7 +296,12 @@ def draw_ui(v: "Viewer") -> None:
     if imgui.collapsing_header("Files", imgui.TreeNodeFlags_.default_open):
         _files(v)
     imgui.text_disabled("F1 or H: keys and mouse")
+    _mark(v, "last")
+    v.panel_layout.update(height=imgui.get_window_height(), grab_px=imgui.get_style().grab_min_size,
+                          digit_px=imgui.calc_text_size("0").x)
     imgui.pop_item_width()
+    imgui.pop_style_color(2)
+    imgui.pop_style_var()
     imgui.end()
     if v.show_help:
         _help(v)

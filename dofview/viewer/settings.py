@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from dofview.camera import Camera
 from dofview.frame import RenderSettings
-from dofview.lens import Lens, PhysicalLens, exposure_from_ev, exposure_from_shutter
+from dofview.lens import Lens, PhysicalLens, exposure_from_shutter
 from dofview.tonemap import Tonemap
 
 FOCUS_PULL_S = 0.15  # duration of a smooth focus pull
@@ -21,11 +21,14 @@ MAX_COC_PX = 30.0  # the aperture slider ends where the largest blur in view rea
 
 @dataclass
 class ViewerSettings:
-    """Panel values. Distances in scene units, aperture strength A in px·(scene unit).
+    """Panel values. Distances in scene units, aperture strength A in px·(scene unit) on the image as
+    drawn (``--aperture``/``--blur`` are resolved to it at the start; "copy as command" turns it
+    back into a strength at the command's reference width, options.render_command_line).
 
     With ``physical`` on, the aperture comes from focal length, f-number, sensor width and the
     scene scale (Cinematic Gaussians Eq. 3) instead of ``aperture``. With ``exposure_follows_aperture``
-    on, exposure is 2^EV · t/N² (Eq. 7), so stopping down darkens the image as a real lens does.
+    on, exposure is EV + log2(t/N²) stops (the factor t/N² of Eq. 7), so stopping down darkens the
+    image as a real lens does.
     """
 
     focus: float = 1.0
@@ -43,6 +46,7 @@ class ViewerSettings:
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     tonemap_operator: str = "clip"  # a key of dofview.tonemap.OPERATORS
     tonemap_params: dict[str, float] = field(default_factory=dict)  # its parameters (missing: defaults)
+    tonemap_auto: bool = False  # the operator follows each opened scene's colour space until one is picked
     stats_lock: bool = False  # freeze the adaptive operators' smoothed statistics
     colour_space: str = "srgb"
     focus_aid: bool = False
@@ -64,10 +68,10 @@ class ViewerSettings:
         return Lens(self.focus, self.aperture)
 
     def tonemap(self) -> Tonemap:
-        exposure = exposure_from_ev(self.ev)
+        ev = self.ev
         if self.exposure_follows_aperture and self.physical:
-            exposure *= exposure_from_shutter(self.shutter_s, self.fnumber)
-        return Tonemap(exposure=exposure, gamma=self.gamma, background=self.background, operator=self.operator())
+            ev += math.log2(exposure_from_shutter(self.shutter_s, self.fnumber))
+        return Tonemap(exposure=ev, gamma=self.gamma, background=self.background, operator=self.operator())
 
     def operator(self):
         """The tone-mapping operator with the panel's parameters (those it does not have are dropped)."""

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import moderngl
 import numpy as np
+from imgui_bundle import imgui
 
 from dofview.api import save_render
 from dofview.camera import Camera
@@ -34,7 +35,7 @@ from dofview.framing import (
     rig_up,
 )
 from dofview.io.cameras import load_cameras_json
-from dofview.lens import Lens, aperture_for_blur
+from dofview.lens import BlurSpec, Lens, aperture_for_blur
 from dofview.options import render_command_line
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.focus import auto_focus, depth_at, depth_range
@@ -46,7 +47,7 @@ from dofview.viewer.controls import ViewControls
 from dofview.viewer.input import InputHandler
 from dofview.viewer.loader import SceneLoad
 from dofview.viewer.panel import PANEL_WIDTH, draw_ui
-from dofview.viewer.settings import FocusPull, ViewerSettings
+from dofview.viewer.settings import START_COC_PX, FocusPull, ViewerSettings
 from dofview.viewer.window import Window
 
 COUNT_EVERY_S = 0.5  # how often the drawn-Gaussian counter is read back (it costs a GPU sync)
@@ -95,6 +96,16 @@ class Viewer:
         self._order_key: bytes | None = None  # the view the uploaded order belongs to
         self.generation = 0
         self.depth_span = (1.0, 1.0)  # near and far depth in view (2nd/98th percentile), scene units
+        # the overview camera (R, U, a scene opened without cameras) frames the scene for this
+        # width, height (pixels) and horizontal field of view (degrees); app.py sets the window's
+        self.framing = (800, 600, 50.0)
+        # the lens a view starts with (R, U, N re-derive it): the --focus / --aperture given for the
+        # scene opened first, None for the first-frame rule (see frame_lens)
+        self.start_focus: float | None = None
+        self.start_aperture: float | None = None
+        self.start_blur: BlurSpec | None = None  # --blur: resolved again on each view's own depths
+        # where the panel drew its parts, window units (panel.draw_ui; the tests check the layout)
+        self.panel_layout: dict[str, float | list[float]] = {}
         self.renderer: Renderer | None = None
         self.set_scene(scene, scene_path, camera, up)
 
@@ -115,6 +126,10 @@ class Viewer:
         self.generation += 1
         self.smoother.reset()
         self.settings.colour_space = scene.colour_space
+        if self.settings.tonemap_auto:  # --tonemap auto: each scene opens with its colour space's operator
+            from dofview.tonemap import default_operator
+
+            self.settings.tonemap_operator, self.settings.tonemap_params = default_operator(scene.colour_space), {}
         self.centre, self.radius = extent(scene)
         self.fly_speed = 0.5 * self.radius
         self.view_index = None
@@ -126,7 +141,7 @@ class Viewer:
             self.message = f"up {guess.label} ({guess.reason}); U cycles"
         if camera is None and self.cameras:
             camera, self.view_index = self.cameras[0], 0
-        self._set_controls(camera or overview_camera(scene, 800, 600, up=self.up))
+        self._set_controls(camera or self._overview())
         self._drawn_key = self._sort_key = None
         self._last_count = -math.inf  # count the new scene's first frame
         self.window.set_title(f"dofview — {self.scene_path.name}")
@@ -145,10 +160,15 @@ class Viewer:
         self.controls = ViewControls.from_camera(camera, pivot if pivot > 0.05 * self.radius else self.radius)
         self.controls.up = self.up.copy()
 
+    def _overview(self) -> Camera:
+        w, h, fov = self.framing
+        return overview_camera(self.scene, w, h, fov, up=self.up)
+
     def reset_view(self) -> None:
-        """Back to the camera that frames the whole scene."""
+        """Back to the camera that frames the whole scene, with the lens it opens with."""
         self.view_index = None
-        self._set_controls(overview_camera(self.scene, 800, 600, up=self.up))
+        self._set_controls(self._overview())
+        self.frame_lens()
 
     def cycle_up(self) -> None:
         """Take the next world up of :data:`UP_AXES` and frame the scene from it (the U key)."""
@@ -158,11 +178,12 @@ class Viewer:
         self.message = f"up {self.up_label} (U cycles)"
 
     def set_view(self, index: int) -> None:
-        """Jump to camera ``index`` of cameras.json (wrapping around)."""
+        """Jump to camera ``index`` of cameras.json (wrapping around), with the lens it opens with."""
         if not self.cameras:
             return
         self.view_index = index % len(self.cameras)
         self._set_controls(self.cameras[self.view_index])
+        self.frame_lens()
 
     def step_view(self, delta: int) -> None:
         """Next (delta 1) or previous (-1) view; from a free camera, the first or the last."""
@@ -201,7 +222,8 @@ class Viewer:
             return
         self.message = (f"loaded {load.path.name}: {load.scene.count:,} Gaussians in {load.elapsed:.1f} s; "
                         + (load.found or self.message))
-        self.auto_focus()
+        self.start_focus = self.start_aperture = self.start_blur = None  # the command line's lens was for the first scene's scale
+        self.frame_lens()
 
     # ---- the current image -----------------------------------------------------------------
     @property
@@ -253,6 +275,28 @@ class Viewer:
         depth = auto_focus(self.pinhole_pass(sort=True))
         self.settings.focus = depth if depth is not None else self.controls.pivot_distance
         self.pull.target = None
+
+    def frame_lens(self) -> None:
+        """The lens a view opens with (its first frame is sharp): focus on what is under the image
+        centre, or at :attr:`start_focus`; aperture :attr:`start_aperture`, or the blur
+        :attr:`start_blur` on this view's depths, else (unless the physical lens gives it) the one
+        whose largest blur in view is ``START_COC_PX`` pixels.
+
+        Measures the depths in view on the way (:attr:`depth_span`, which scales the sliders).
+        """
+        if self.start_focus is None:
+            self.auto_focus()
+        else:
+            self.pinhole_pass(sort=True)
+            self.set_focus(self.start_focus, smooth=False)
+        if self.start_aperture is not None:
+            self.settings.aperture = self.start_aperture
+        elif self.start_blur is not None:
+            cam = self.camera()
+            self.settings.aperture = self.start_blur.aperture(cam.width, cam.ref_width, self.settings.focus,
+                                                              self.depth_span)
+        elif not self.settings.physical:
+            self.settings.aperture = self.aperture_for_blur(START_COC_PX)
 
     def pinhole_pass(self, sort: bool) -> Frame:
         """Draw and read back a pinhole pass of the current view (sorted first if ``sort``), and
@@ -470,6 +514,9 @@ class Viewer:
             "message": self.message, "error": self.error, "command": self.command_line(),
             "clipboard": self.window.clipboard(), "sort_requests": self.sort_requests,
             "splat_draws": self.splat_draws, "lens_samples": self.progressive.samples,
+            # ImGui's state after the last frame: a text field being edited takes the keys
+            "keyboard_captured": imgui.get_io().want_capture_keyboard, "ui_active": imgui.is_any_item_active(),
+            "panel": self.panel_layout,
         }
 
     def close(self) -> None:
