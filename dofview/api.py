@@ -29,8 +29,9 @@ from typing import Callable
 
 from dofview import __version__
 from dofview.camera import Camera
+from dofview.errors import DofviewError
 from dofview.frame import Frame, RenderSettings
-from dofview.lens import Lens
+from dofview.lens import Lens, LensRequest
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.progressive import render_lens_samples
 from dofview.scene import ColourSpace, GaussianScene
@@ -96,29 +97,70 @@ def render(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0), *,
 def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings, colour_space: str,
                scene_path: str | None = None, lens_info: dict[str, object] | None = None,
                stats: Stats | None = None) -> dict[str, object]:
-    """dofview's EXR header attributes for one view: version, scene, camera (with the reference
-    width its aperture strengths are given at), lens (the strength A used on this image, and
-    ``lens_info``: the physical-lens values and the options as asked), exposure, gamma and
-    splatting settings (JSON strings where structured)."""
+    """dofview's EXR header attributes for one view, each from its type's ``to_dict``: version,
+    scene, ``dofview:camera`` (:meth:`Camera.to_dict`), ``dofview:lens`` (:meth:`Lens.to_dict` and
+    ``lens_info``, a :meth:`~dofview.lens.LensRequest.to_dict`: how the aperture was asked for),
+    ``dofview:exposure``, ``dofview:gamma`` and ``dofview:tonemap`` (:meth:`Tonemap.to_dict`),
+    ``dofview:render`` (:meth:`RenderSettings.to_dict` and the scene's colour space); JSON strings
+    where structured. :func:`read_header` reads them back."""
     header: dict[str, object] = {"dofview:version": __version__}
     if scene_path is not None:
         header["dofview:scene"] = scene_path
+    display = tm.to_dict()
     header.update({
-        "dofview:camera": json.dumps({"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
-                                      "cx": camera.cx, "cy": camera.cy, "R": camera.R.tolist(), "T": camera.T.tolist(),
-                                      "ref_width": camera.ref_width}),
-        "dofview:lens": json.dumps({"focus": lens.focus, "aperture": lens.aperture, **(lens_info or {})}),
-        "dofview:exposure": tm.exposure,
-        "dofview:gamma": tm.gamma,
-        "dofview:tonemap": json.dumps({"operator": tm.operator.name, **tm.operator.params()}),
-        "dofview:render": json.dumps({"tau": settings.tau, "k": settings.k, "opacity_norm": settings.opacity_norm,
-                                      "blend_linear": settings.blend_linear, "cut": settings.cut,
-                                      "kernel": settings.kernel,
-                                      "colour_space": colour_space}),
+        "dofview:camera": json.dumps(camera.to_dict()),
+        "dofview:lens": json.dumps({**lens.to_dict(), **(lens_info or {})}),
+        "dofview:exposure": display["exposure"],
+        "dofview:gamma": display["gamma"],
+        "dofview:tonemap": json.dumps(display["tonemap"]),
+        "dofview:render": json.dumps({**settings.to_dict(), "colour_space": colour_space}),
     })
     if stats is not None:  # the statistics the PNG was tone mapped with (log2 linear radiance)
         header["dofview:tonemap_stats"] = stats.to_json()
     return header
+
+
+def read_header(header: dict[str, object]) -> dict[str, object]:
+    """The dofview entries of an EXR header (:func:`exr_header`'s, read with
+    :func:`dofview.io.exr.read_exr`) as objects: ``camera``, ``lens``, ``lens_request``,
+    ``tonemap``, ``settings``, ``colour_space`` for those present, and the other ``dofview:``
+    entries by name as stored. Recorded objects read with their own ``from_dict``, so a header
+    written before an entry was recorded (``near``) reads with that entry's default.
+
+    Raises:
+        DofviewError: a malformed entry.
+    """
+    out: dict[str, object] = {k[len("dofview:"):]: v for k, v in header.items() if k.startswith("dofview:")}
+    try:
+        if "dofview:camera" in header:
+            out["camera"] = Camera.from_dict(_json_entry(header, "dofview:camera"))
+        if "dofview:lens" in header:
+            out["lens"] = Lens.from_dict(_json_entry(header, "dofview:lens"))
+            out["lens_request"] = LensRequest.from_dict(_json_entry(header, "dofview:lens"))
+        if "dofview:render" in header:
+            render = _json_entry(header, "dofview:render")
+            out["colour_space"] = render.pop("colour_space", "srgb")
+            out["settings"] = RenderSettings.from_dict(render)
+        if "dofview:tonemap" in header:
+            out["tonemap"] = Tonemap.from_dict({"exposure": header.get("dofview:exposure", 0.0),
+                                                "gamma": header.get("dofview:gamma", 2.2),
+                                                "tonemap": _json_entry(header, "dofview:tonemap")},
+                                               str(out.get("colour_space", "srgb")))
+    except (KeyError, TypeError, ValueError) as e:
+        raise DofviewError(f"EXR header: malformed dofview entry ({e})") from None
+    return out
+
+
+def _json_entry(header: dict[str, object], key: str) -> dict:
+    """The JSON object of header entry ``key``; DofviewError when it is not one."""
+    value = header[key]
+    try:
+        d = json.loads(value) if isinstance(value, (str, bytes)) else value
+    except ValueError:
+        d = None
+    if not isinstance(d, dict):
+        raise DofviewError(f"EXR header {key}: not a JSON object")
+    return d
 
 
 def joint_stats(renderer: Renderer, cameras: list[Camera], operator, settings: RenderSettings = RenderSettings(),
@@ -141,13 +183,13 @@ def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, set
     dofview header) and optionally the PNG tone mapped on the GPU. Shared by the CLI and the
     viewer's Save.
 
-    ``lens_info`` holds the physical-lens values for the header (fnumber, focal_mm, sensor_mm,
-    units_per_metre; None where not used); ``header`` adds attributes (a sequence's frame number).
+    ``lens_info`` is how the aperture was asked for (:meth:`dofview.lens.LensRequest.to_dict`:
+    the physical-lens values and the options as given); ``header`` adds attributes (a sequence's frame number).
     ``stats``: statistics for an adaptive ``tm.operator`` (joint or smoothed); default this frame's,
     from the read-back frame; with ``smoother`` (a sequence: one StatsSmoother for all its frames,
     ``dt`` the frame interval in seconds) this frame's statistics are smoothed in time first.
-    The EXR stays linear whatever the operator; its header records the operator and the statistics. ``lens_samples`` > 0: the physical thin lens from that many pinhole
-    passes (rendering.progressive, the image the viewer converges to) instead of the single pass.
+    The EXR stays linear whatever the operator; its header records the operator and the statistics. ``lens_samples`` > 0: the depth of field refined with that many
+    sub-aperture passes (rendering.progressive; the image the viewer shows once it reached that many).
     """
     from dofview.io.png import write_png
 

@@ -102,6 +102,43 @@ class Camera:
     def fov_x_deg(self) -> float:
         return math.degrees(2 * math.atan(self.width / (2 * self.fx)))
 
+    def to_dict(self) -> dict[str, object]:
+        """The camera as plain data (the EXR header's ``dofview:camera``, the API): size, intrinsics
+        (pixels), R and T as nested lists, ref_width. ``name`` is a label, not part of the view: it
+        is left out, so a frame's header compares equal whichever file the view came from."""
+        return {"width": self.width, "height": self.height, "fx": self.fx, "fy": self.fy, "cx": self.cx,
+                "cy": self.cy, "R": self.R.tolist(), "T": self.T.tolist(), "ref_width": self.ref_width}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object]) -> "Camera":
+        """The camera of :meth:`to_dict` (a header without ``ref_width``: the camera's own width).
+
+        Raises:
+            DofviewError: a missing or malformed entry, named.
+        """
+        try:
+            return cls(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]), float(d["cx"]),
+                       float(d["cy"]), np.array(d["R"], dtype=np.float64), np.array(d["T"], dtype=np.float64),
+                       ref_width=int(d.get("ref_width", 0)))
+        except (KeyError, TypeError, ValueError) as e:
+            raise DofviewError(f"camera record: missing or malformed entry ({e})") from None
+
+    def to_args(self, target_distance: float = 1.0) -> list[str]:
+        """``dofview render`` arguments for this view: --width/--height, --eye at the centre,
+        --target ``target_distance`` scene units ahead, --up the image-up direction (keeps the
+        roll) and --fov, all at full float precision. They give back this camera (to the last
+        bits of the float64 rotation) for a centred principal point and square pixels, with the
+        reference width of an --eye/--target camera (:data:`REFERENCE_WIDTH`)."""
+        eye = self.centre
+        target = eye + self.forward * target_distance
+
+        def joined(v) -> str:
+            return ",".join(repr(float(x)) for x in v)
+
+        # "--eye=…" form: argparse would take a value like "-1.5,0,2" for an option
+        return ["--width", str(self.width), "--height", str(self.height), f"--eye={joined(eye)}",
+                f"--target={joined(target)}", f"--up={joined(-self.R[1])}", "--fov", repr(self.fov_x_deg)]
+
 
 def look_at(eye, target, width: int, height: int, fov_deg: float = 50.0, up=(0.0, -1.0, 0.0)) -> Camera:
     """A camera at ``eye`` looking at ``target``; ``fov_deg`` is the horizontal field of view.

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +15,7 @@ from dofview.tonemap import Tonemap, display, to_uint8
 OPACITY_NORMS: tuple[str, ...] = ("none", "energy", "optical-depth")
 CUT_MODES: tuple[str, ...] = ("drop", "conserve")
 KERNELS: tuple[str, ...] = ("gaussian", "disk")
+DOF_MODES: tuple[str, ...] = ("splat", "sliced")
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,11 @@ class RenderSettings:
             or "disk" (the same ellipse with the radial profile of a Gaussian spread over a disk of
             radius 2·sqrt(k)·R, the thin lens's circle of confusion at k = 1/4); "disk" works with the
             "drop" cut only.
+        dof: how depth of field is made: "splat" blurs each splat (k, the kernel, the opacity
+            normalisation), "sliced" blends depth slices as a pinhole and blurs each slice with the
+            aperture (rendering/sliced.py; the settings above then apply to its huge-CoC layers only).
+        blades: aperture of the sliced mode: 0 a disk, n ≥ 3 a regular n-gon.
+        blade_rotation: the polygon's first corner, degrees from +x (image right).
     """
 
     tau: float = 1.0 / 255.0  # chosen by docs/BENCHMARKS.md "Speed against error"
@@ -47,6 +53,9 @@ class RenderSettings:
     near: float = 0.01
     cut: str = "drop"  # "conserve" wins on one real scene of five: docs/BENCHMARKS.md, real scenes
     kernel: str = "gaussian"  # "disk": docs/BENCHMARKS.md, "A disk-shaped kernel"
+    dof: str = "splat"
+    blades: int = 0
+    blade_rotation: float = 0.0
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.tau < 1.0):
@@ -63,6 +72,41 @@ class RenderSettings:
             raise DofviewError("the disk kernel works with the drop cut only (--cut drop)")
         if not (math.isfinite(self.near) and self.near > 0):
             raise DofviewError(f"near plane must be finite and > 0, got {self.near}")
+        if self.dof not in DOF_MODES:
+            raise DofviewError(f"depth of field mode must be one of {', '.join(DOF_MODES)}, got {self.dof!r}")
+        if self.blades != 0 and not (3 <= self.blades <= 64):
+            raise DofviewError(f"aperture blades must be 0 (a disk) or 3…64, got {self.blades}")
+        if not math.isfinite(self.blade_rotation):
+            raise DofviewError(f"blade rotation must be a finite number of degrees, got {self.blade_rotation}")
+
+    def to_dict(self) -> dict[str, object]:
+        """Every setting by its field name (the EXR header's ``dofview:render``, the bench's columns)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object]) -> "RenderSettings":
+        """The settings of :meth:`to_dict`; a missing entry takes its default (headers written
+        before ``near`` was recorded).
+
+        Raises:
+            DofviewError: an unknown entry, or a value out of range, named.
+        """
+        names = {f.name: f for f in fields(cls)}
+        unknown = [k for k in d if k not in names]
+        if unknown:
+            raise DofviewError(f"render settings: unknown entry {unknown[0]!r}")
+        cast = {"float": float, "bool": bool, "str": str, "int": int}  # the fields' annotations, as text
+        return cls(**{k: cast[names[k].type](v) for k, v in d.items()})  # type: ignore[index]
+
+    def to_args(self) -> list[str]:
+        """``dofview render`` arguments that give these settings (full float precision)."""
+        args = ["--tau", repr(float(self.tau)), "--k", repr(float(self.k)), "--opacity-norm", self.opacity_norm,
+                "--cut", self.cut, "--kernel", self.kernel, "--near", repr(float(self.near))]
+        if self.dof != "splat":
+            args += ["--dof", self.dof]
+        if self.blades:
+            args += ["--blades", str(self.blades), "--blade-rotation", repr(float(self.blade_rotation))]
+        return args + (["--blend-linear"] if self.blend_linear else [])
 
 
 @dataclass

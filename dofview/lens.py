@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -47,6 +48,35 @@ class Lens:
         """Aperture diameter D in scene units for a camera with ``fx`` pixels (A = f_x·D)."""
         return self.aperture / fx
 
+    def to_dict(self) -> dict[str, float]:
+        """``{"focus": d_f, "aperture": A}`` (scene units; px·scene unit on the image drawn)."""
+        return {"focus": self.focus, "aperture": self.aperture}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object]) -> "Lens":
+        """The lens of :meth:`to_dict` (other entries, such as a header's :class:`LensRequest`, are ignored)."""
+        try:
+            return cls(float(d["focus"]), float(d["aperture"]))  # type: ignore[arg-type]
+        except (KeyError, TypeError, ValueError) as e:
+            raise DofviewError(f"lens record: missing or malformed entry ({e})") from None
+
+    def to_args(self, width: int, ref_width: int) -> list[str]:
+        """``dofview render`` arguments for this lens on an image ``width`` wide whose aperture
+        strengths hold at ``ref_width``: --focus, and --aperture the strength at ``ref_width``
+        that :meth:`dofview.camera.Camera.scaled_aperture` turns back into :attr:`aperture` bit
+        for bit where a float does (A·ref_width/width alone may be off by its last bits), else
+        the one that comes nearest, within a unit in the last place of A."""
+        a = self.aperture
+        if width != ref_width and a > 0:
+            given = a * ref_width / width
+            near = [given]
+            up = down = given
+            for _ in range(4):  # the best value is within a few ulps of the quotient
+                up, down = math.nextafter(up, math.inf), math.nextafter(down, 0.0)
+                near += [up, down]
+            a = min(near, key=lambda c: abs(c * width / ref_width - self.aperture))
+        return ["--focus", repr(float(self.focus)), "--aperture", repr(float(a))]
+
 
 @dataclass(frozen=True)
 class PhysicalLens:
@@ -67,10 +97,6 @@ class PhysicalLens:
     def focal_units(self) -> float:
         """Focal length in scene units."""
         return self.focal_mm * 1e-3 * self.units_per_metre
-
-    def fx_pixels(self, width: int) -> float:
-        """The horizontal focal length in pixels this lens gives on an image ``width`` wide."""
-        return self.focal_mm / self.sensor_mm * width
 
     def strength(self, fx: float, focus: float) -> float:
         """Aperture strength A (px·scene unit) for focus distance ``focus`` (scene units).
@@ -147,6 +173,30 @@ class BlurSpec:
         depth = "" if self.depth is None else f"@{self.depth:g}"
         return f"{self.radius:g}{'%' if self.percent else ''}{depth}"
 
+    def to_text(self) -> str:
+        """The ``--blur`` value at full float precision (``str`` rounds to 6 digits, as headers show it)."""
+        depth = "" if self.depth is None else f"@{self.depth!r}"
+        return f"{float(self.radius)!r}{'%' if self.percent else ''}{depth}"
+
+    @classmethod
+    def parse(cls, text: str) -> "BlurSpec":
+        """A ``--blur`` value: ``R`` (pixels at the reference width), ``R%`` (of the image width),
+        each optionally ``@DEPTH`` (scene units or inf).
+
+        Raises:
+            DofviewError: not such a value, with what is wrong.
+        """
+        radius, sep, depth = text.partition("@")
+        percent = radius.endswith("%")
+        r = _parse_number(radius[:-1] if percent else radius, "blur radius", positive=False)
+        if not sep:
+            return cls(r, percent)
+        if not depth:
+            raise DofviewError("--blur: a blur radius such as 4 (pixels), 0.5% (of the image width) or 4@inf "
+                               f"(at a depth); got {text!r}")
+        d = math.inf if depth in ("inf", "infinity") else _parse_number(depth, "blur depth", positive=True)
+        return cls(r, percent, d)
+
     def radius_px(self, width: int, ref_width: int) -> float:
         """The radius in pixels on an image ``width`` wide whose reference width is ``ref_width``."""
         return self.radius / 100.0 * width if self.percent else self.radius * width / ref_width
@@ -164,6 +214,120 @@ class BlurSpec:
         return aperture_for_blur(radius, focus, *span)
 
 
+def _parse_number(text: str, what: str, positive: bool) -> float:
+    """A finite number ≥ 0 (> 0 when ``positive``) written as ``text``; DofviewError naming ``what``."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise DofviewError(f"{what} must be a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise DofviewError(f"{what} must be finite, got {text!r}")
+    if v < 0 or (positive and v == 0):
+        raise DofviewError(f"{what} must be {'>' if positive else '≥'} 0, got {text}")
+    return v
+
+
+class SizedCamera(Protocol):
+    """What resolving a :class:`LensRequest` reads of a :class:`dofview.camera.Camera`."""
+
+    fx: float
+    width: int
+    ref_width: int
+
+    def scaled_aperture(self, aperture: float) -> float: ...
+
+
+@dataclass(frozen=True)
+class LensRequest:
+    """How the depth of field was asked for (the command's lens options, before a camera and a
+    focus resolve them to a :class:`Lens`): a strength A at the camera's reference width
+    (``--aperture``), a blur (``--blur``), or a physical lens (``--fnumber`` with ``--focal-mm``,
+    on ``sensor_mm`` and ``units_per_metre``). At most one way; none is a pinhole.
+
+    Raises:
+        DofviewError: more than one way, or half a physical lens.
+    """
+
+    aperture: float | None = None
+    blur: BlurSpec | None = None
+    fnumber: float | None = None
+    focal_mm: float | None = None
+    sensor_mm: float = 36.0
+    units_per_metre: float = 1.0
+
+    def __post_init__(self) -> None:
+        physical = self.fnumber is not None or self.focal_mm is not None
+        if sum((physical, self.aperture is not None, self.blur is not None)) > 1:
+            raise DofviewError("give the aperture one way: --aperture A, --blur R or --fnumber/--focal-mm")
+        if physical and (self.fnumber is None or self.focal_mm is None):
+            raise DofviewError("a physical lens needs both --fnumber and --focal-mm")
+
+    @property
+    def physical(self) -> PhysicalLens | None:
+        if self.fnumber is None or self.focal_mm is None:
+            return None
+        return PhysicalLens(self.focal_mm, self.fnumber, self.sensor_mm, self.units_per_metre)
+
+    @property
+    def needs_span(self) -> bool:
+        """Whether resolving needs the depth range in view (``--blur R`` without ``@DEPTH``)."""
+        return self.blur is not None and self.blur.depth is None
+
+    def lens(self, camera: SizedCamera, focus: float, span: tuple[float, float] | None = None) -> Lens:
+        """The lens on ``camera`` at ``focus`` (scene units): --aperture A scaled from the camera's
+        reference width to its width, --blur resolved on ``span`` (the (near, far) depths in view,
+        scene units), or the physical lens through f_x (which scales with the width by itself)."""
+        physical = self.physical
+        if physical is not None:
+            return physical.lens(camera.fx, focus)
+        if self.blur is not None:
+            return Lens(focus=focus, aperture=self.blur.aperture(camera.width, camera.ref_width, focus, span))
+        return Lens(focus=focus, aperture=camera.scaled_aperture(self.aperture or 0.0))
+
+    def asked(self) -> str:
+        """The options as given, in words for the header (``--blur 1%``, ``--aperture 60``, …)."""
+        if self.blur is not None:
+            return f"--blur {self.blur}"
+        if self.physical is not None:
+            return f"--fnumber {self.fnumber:g} --focal-mm {self.focal_mm:g}"
+        return f"--aperture {self.aperture or 0.0:g}"
+
+    def to_dict(self) -> dict[str, object]:
+        """What the EXR header's ``dofview:lens`` records besides the :class:`Lens`: fnumber,
+        focal_mm (None unless physical), sensor_mm, units_per_metre and ``asked`` (:meth:`asked`)."""
+        return {"fnumber": self.fnumber, "focal_mm": self.focal_mm, "sensor_mm": self.sensor_mm,
+                "units_per_metre": self.units_per_metre, "asked": self.asked()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object]) -> "LensRequest":
+        """The request of :meth:`to_dict` (other entries, such as the :class:`Lens`'s, are ignored;
+        a header without ``asked`` records a strength or a physical lens by its values).
+
+        Raises:
+            DofviewError: a malformed entry, named.
+        """
+        asked = str(d.get("asked", ""))
+        kind, _, value = asked.partition(" ")
+        blur = BlurSpec.parse(value) if kind == "--blur" else None
+        aperture = _parse_number(value, "aperture", positive=False) if kind == "--aperture" else None
+
+        def opt(name: str) -> float | None:
+            v = d.get(name)
+            return None if v is None else float(v)  # type: ignore[arg-type]
+
+        return cls(aperture=aperture, blur=blur, fnumber=opt("fnumber"), focal_mm=opt("focal_mm"),
+                   sensor_mm=opt("sensor_mm") or 36.0, units_per_metre=opt("units_per_metre") or 1.0)
+
+    def to_args(self) -> list[str]:
+        """``dofview render`` lens arguments that make this request (full float precision)."""
+        if self.blur is not None:
+            return ["--blur", self.blur.to_text()]
+        if self.physical is not None:
+            return ["--fnumber", repr(float(self.fnumber)), "--focal-mm", repr(float(self.focal_mm)),  # type: ignore[arg-type]
+                    "--sensor-mm", repr(float(self.sensor_mm)), "--units-per-metre", repr(float(self.units_per_metre))]
+        return [] if self.aperture is None else ["--aperture", repr(float(self.aperture))]
+
+
 def exposure_from_ev(ev: float) -> float:
     """Linear exposure multiplier 2^EV."""
     if not math.isfinite(ev):
@@ -176,6 +340,11 @@ def exposure_from_shutter(t: float, fnumber: float) -> float:
     if not (t > 0 and math.isfinite(t) and fnumber > 0 and math.isfinite(fnumber)):
         raise DofviewError(f"exposure time and f-number must be > 0, got t={t}, N={fnumber}")
     return float(t / fnumber ** 2)
+
+
+def shutter_ev(t: float, fnumber: float) -> float:
+    """The exposure in EV stops of exposure time ``t`` seconds at f-number ``fnumber``: log2(t/N²)."""
+    return math.log2(exposure_from_shutter(t, fnumber))
 
 
 # ---- the per-Gaussian lens math, written once for numpy arrays and torch tensors alike ----------

@@ -1,7 +1,7 @@
-"""Command-line options shared by ``render``, ``view``, ``bench`` and ``train``, and the objects
-built from them (scene, camera, lens, tone mapping, splatting settings).
-
-Each value parser rejects a bad value with a one-line argparse error.
+"""Command-line options shared by ``render``, ``view``, ``bench`` and ``train``: the value parsers
+(each rejects a bad value with a one-line argparse error), the option groups, and the one
+``dofview render`` line that reproduces a view (:func:`render_command_line`). The objects the
+options ask for are built by :mod:`dofview.request`.
 """
 
 from __future__ import annotations
@@ -9,21 +9,18 @@ from __future__ import annotations
 import argparse
 import math
 import shlex
-import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
-from dofview.camera import REFERENCE_WIDTH, Camera, look_at
+from dofview.camera import REFERENCE_WIDTH, Camera
 from dofview.errors import DofviewError
-from dofview.frame import CUT_MODES, KERNELS, OPACITY_NORMS, RenderSettings
-from dofview.framing import UP_AXES, UpGuess, count_in_view, guess_up, overview_camera
-from dofview.io.cameras import load_cameras_json, select_camera
+from dofview.frame import CUT_MODES, DOF_MODES, KERNELS, OPACITY_NORMS, RenderSettings
+from dofview.framing import UP_AXES
 from dofview.io.spz import AXES as SPZ_AXES
-from dofview.lens import BlurSpec, Lens, PhysicalLens, exposure_from_shutter
+from dofview.lens import BlurSpec, Lens
 from dofview.rendering import AUTO_ORDER, BACKENDS
-from dofview.scene import COLOUR_SPACES, GaussianScene
-from dofview.tonemap import Tonemap, default_operator
+from dofview.scene import COLOUR_SPACES
+from dofview.tonemap import Tonemap
 
 RASTERS: tuple[str, ...] = ("auto", *BACKENDS)
 
@@ -98,16 +95,10 @@ def focus_or_pull(text: str) -> float | str | tuple:
 def blur_value(text: str) -> BlurSpec:
     """``--blur``: ``R`` (pixels at the camera's reference width), ``R%`` (of the image width), each
     optionally ``@DEPTH`` (scene units or inf: the blur of that depth; default the largest in view)."""
-    radius, sep, depth = text.partition("@")
-    percent = radius.endswith("%")
-    what = "--blur: a blur radius such as 4 (pixels), 0.5% (of the image width) or 4@inf (at a depth)"
-    r = number(0.0, None, hi_open=False, what="blur radius")(radius[:-1] if percent else radius)
-    if not sep:
-        return BlurSpec(r, percent)
-    if not depth:
-        raise argparse.ArgumentTypeError(f"{what}; got {text!r}")
-    d = math.inf if depth in ("inf", "infinity") else number(0.0, None, lo_open=True, what="blur depth")(depth)
-    return BlurSpec(r, percent, d)
+    try:
+        return BlurSpec.parse(text)
+    except DofviewError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def tau_value(text: str) -> float:
@@ -187,130 +178,9 @@ def add_lens_args(p: argparse.ArgumentParser, focus_pull: bool = False) -> None:
     g.add_argument("--cut", choices=CUT_MODES, default=RenderSettings.cut, help=f"how τ cuts a splat: drop the light below τ, or conserve each splat's mass (default {RenderSettings.cut})")
     g.add_argument("--blend-linear", action="store_true", help="decode splat colours to linear light before blending (sRGB scenes)")
     g.add_argument("--kernel", choices=KERNELS, default=RenderSettings.kernel, help=f"aperture kernel: a Gaussian, or the splat spread over the CoC disk (default {RenderSettings.kernel})")
-
-
-# ---- building objects from arguments ------------------------------------------------------------
-def load_scene_arg(args: argparse.Namespace, progress: bool = True) -> GaussianScene:
-    from dofview.io import load_scene
-    from dofview.io.runfolder import find_run
-
-    run = find_run(args.scene, getattr(args, "iteration", None))
-    args.scene = run.scene
-    explicit = getattr(args, "cameras", None) is not None or getattr(args, "eye", None) or getattr(args, "target", None)
-    if run.cameras is not None and hasattr(args, "cameras") and not explicit:  # --cameras or --eye/--target win
-        args.cameras = run.cameras
-        note(args, run.describe(len(load_cameras_json(run.cameras))))
-    elif run.root is not None:
-        note(args, run.describe())
-    scene = load_scene(args.scene, progress=progress, spz_axes=getattr(args, "spz_axes", None),
-                       report=lambda line: print(line, file=sys.stderr))
-    if args.colour_space:
-        scene.colour_space = args.colour_space
-    return scene
-
-
-def camera_from_args(args: argparse.Namespace, scene: GaussianScene, default_size=(800, 600)) -> Camera:
-    if args.cameras and (args.eye or args.target):
-        raise DofviewError("use either --cameras/--view or --eye/--target, not both")
-    physical_fov = None
-    if getattr(args, "focal_mm", None) and args.fov is None:
-        physical_fov = math.degrees(2 * math.atan(args.sensor_mm / (2 * args.focal_mm)))
-    if args.cameras:
-        cam = select_camera(load_cameras_json(args.cameras), args.view, str(args.cameras))
-        w = args.width or (round(cam.width * args.height / cam.height) if args.height else cam.width)
-        h = args.height or (round(cam.height * args.width / cam.width) if args.width else cam.height)
-        what = f"camera {cam.name or args.view!r} of {Path(args.cameras).absolute()}"
-        return _check_seen(args, scene, cam.resized(w, h), what)
-    dw, dh = default_size
-    w = args.width or (round(dw * args.height / dh) if args.height else dw)
-    h = args.height or (round(dh * args.width / dw) if args.width else dh)
-    fov = args.fov or physical_fov or 50.0
-    if args.eye or args.target:
-        if not (args.eye and args.target):
-            raise DofviewError("--eye and --target go together")
-        cam = look_at(args.eye, args.target, w, h, fov, UpGuess(args.up).vector if args.up else (0.0, -1.0, 0.0))
-        _check_seen(args, scene, cam, "the camera of --eye/--target")
-    else:
-        cam = overview_camera(scene, w, h, fov, up_from_args(args, scene).vector)
-    return replace(cam, ref_width=REFERENCE_WIDTH)  # no size of its own: --aperture holds at the default width
-
-
-def _check_seen(args: argparse.Namespace, scene: GaussianScene, cam: Camera, what: str) -> Camera:
-    """``cam``, the camera the user chose (``what``, in words), when it sees some of the scene. One that
-    sees none of it is refused where ``--focus auto`` would have nothing to focus on, else noted: the
-    image it makes is empty, and the user is told why rather than given a black picture.
-
-    Raises:
-        DofviewError: ``cam`` sees no Gaussian and the focus is automatic.
-    """
-    if count_in_view(scene, cam, getattr(args, "near", 0.01)) > 0:
-        return cam
-    line = f"{what} sees none of the {scene.count:,} Gaussians of {args.scene}"
-    focus = getattr(args, "focus", None)
-    if "auto" in (focus if isinstance(focus, tuple) else (focus,)):
-        raise DofviewError(f"{line}: nothing in view to focus on; choose another view (--view, --eye/--target), "
-                           "or give --focus to render the empty view")
-    note(args, f"dofview: warning: {line}: the image is empty")
-    return cam
-
-
-def up_from_args(args: argparse.Namespace, scene: GaussianScene) -> UpGuess:
-    """World up for a scene without cameras: ``--up``, else guessed (and noted, once)."""
-    if getattr(args, "up_guess", None) is None:
-        if getattr(args, "up", None):
-            args.up_guess = UpGuess(args.up, "--up")
-        else:
-            args.up_guess = guess_up(scene)
-            note(args, f"up axis {args.up_guess.label} (guessed: {args.up_guess.reason}; --up overrides)")
-    return args.up_guess
-
-
-def note(args: argparse.Namespace, line: str) -> None:
-    """Keep a line about what was found or guessed (run folder, cameras, up axis) for :func:`say_notes`."""
-    args.notes = [*getattr(args, "notes", []), line]
-
-
-def say_notes(args: argparse.Namespace) -> None:
-    """Print the noted lines to stderr, once: commands call it when their work is under way, so that
-    a mistake found earlier stays a one-line error."""
-    for line in getattr(args, "notes", []):
-        print(line, file=sys.stderr)
-    args.notes = []
-
-
-def needs_depths(args: argparse.Namespace) -> bool:
-    """Whether the lens options need the depth range in view (``--blur R`` without ``@DEPTH``)."""
-    blur = getattr(args, "blur", None)
-    return blur is not None and blur.depth is None
-
-
-def lens_from_args(args: argparse.Namespace, camera: Camera, focus: float,
-                   span: tuple[float, float] | None = None) -> Lens:
-    """The lens the options ask for on ``camera`` at ``focus`` (scene units): ``--aperture A``
-    scaled from the camera's reference width to its width, ``--blur`` resolved on ``span`` (the
-    (near, far) depths in view, scene units, from :func:`dofview.rendering.focus.depth_range`), or
-    the physical lens through the camera's f_x (which scales with the width by itself)."""
-    physical = args.fnumber is not None or args.focal_mm is not None
-    blur = getattr(args, "blur", None)
-    if sum((physical, args.aperture is not None, blur is not None)) > 1:
-        raise DofviewError("give the aperture one way: --aperture A, --blur R or --fnumber/--focal-mm")
-    if physical:
-        if args.fnumber is None or args.focal_mm is None:
-            raise DofviewError("a physical lens needs both --fnumber and --focal-mm")
-        return PhysicalLens(args.focal_mm, args.fnumber, args.sensor_mm, args.units_per_metre).lens(camera.fx, focus)
-    if blur is not None:
-        return Lens(focus=focus, aperture=blur.aperture(camera.width, camera.ref_width, focus, span))
-    return Lens(focus=focus, aperture=camera.scaled_aperture(args.aperture or 0.0))
-
-
-def aperture_asked(args: argparse.Namespace) -> str:
-    """The lens options as given, for the EXR header (``--blur 1%``, ``--aperture 60``, …)."""
-    blur = getattr(args, "blur", None)
-    if blur is not None:
-        return f"--blur {blur}"
-    if args.fnumber is not None or args.focal_mm is not None:
-        return f"--fnumber {args.fnumber:g} --focal-mm {args.focal_mm:g}"
-    return f"--aperture {args.aperture or 0.0:g}"
+    g.add_argument("--dof", choices=DOF_MODES, default=RenderSettings.dof, help="depth of field: blur each splat, or blend depth slices as a pinhole and blur each slice with the aperture (rendering/sliced.py; default splat)")
+    g.add_argument("--blades", type=number(0, 64, hi_open=False, integer=True, what="blades"), default=0, help="--dof sliced: aperture blades, 0 = a round disk (default), 3…64 a regular polygon")
+    g.add_argument("--blade-rotation", type=number(what="blade rotation"), default=0.0, metavar="DEG", help="--dof sliced: rotation of the polygon's first corner, degrees from image right (default 0)")
 
 
 def add_tonemap_args(g) -> None:
@@ -332,81 +202,15 @@ def add_tonemap_args(g) -> None:
                            help=f"{name}: {f.name} (default {f.default:g}; see dofview.tonemap.{cls.__module__.rsplit('.', 1)[1]})")
 
 
-def operator_from_args(args: argparse.Namespace, colour_space: str = "srgb"):
-    """The --tonemap operator with its --NAME-PARAM flags (``auto``: the scene's default for
-    ``colour_space``); a flag for another operator is an error."""
-    from dataclasses import fields
-
-    from dofview.tonemap import AUTO, OPERATORS, default_operator
-
-    name = getattr(args, "tonemap", AUTO)
-    name = default_operator(colour_space) if name == AUTO else name
-    for other, cls in OPERATORS.items():
-        given = [f.name for f in fields(cls) if getattr(args, f"tm_{other}_{f.name}", None) is not None]
-        if other != name and given:
-            raise DofviewError(f"--{other}-{given[0].replace('_', '-')} needs --tonemap {other}")
-    cls = OPERATORS[name]
-    return cls(**{f.name: getattr(args, f"tm_{name}_{f.name}") for f in fields(cls)
-                  if getattr(args, f"tm_{name}_{f.name}", None) is not None})
-
-
-def tonemap_from_args(args: argparse.Namespace, colour_space: str = "srgb") -> Tonemap:
-    if args.shutter is not None:
-        if args.fnumber is None:
-            raise DofviewError("--shutter needs --fnumber (exposure = t/N²)")
-        exposure = math.log2(exposure_from_shutter(args.shutter, args.fnumber))
-    else:
-        exposure = args.exposure
-    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background,
-                   operator=operator_from_args(args, colour_space))
-
-
-def stats_from_args(args: argparse.Namespace, renderer, tm: Tonemap, settings: RenderSettings):
-    """The tone-mapping statistics ``--stats`` asks for: pooled over every training view of
-    ``--cameras`` (``joint``, for sequences that must not adapt), or None for each frame's own."""
-    if args.stats != "joint" or not tm.operator.adaptive:
-        return None
-    if args.cameras is None:
-        raise DofviewError("--stats joint pools the views of --cameras: give --cameras")
-    from dofview.api import joint_stats
-
-    return joint_stats(renderer, load_cameras_json(args.cameras), tm.operator, settings)
-
-
-def settings_from_args(args: argparse.Namespace) -> RenderSettings:
-    return RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm,
-                          blend_linear=args.blend_linear, near=args.near, cut=args.cut,
-                          kernel=args.kernel)
-
-
 def render_command_line(scene_path: str, camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings,
                         colour_space: str, out: str = "out.exr") -> str:
-    """A ``dofview render`` line that reproduces a view (used by the viewer's "copy as command").
-
-    ``lens.aperture`` is the strength on ``camera`` as drawn; the line gives it at the reference
-    width of an --eye/--target camera, so the same line with another --width gives the same
-    picture, scaled."""
-    eye = camera.centre
-    target = eye + camera.forward * (lens.focus if math.isfinite(lens.focus) else 1.0)
-    fov = camera.fov_x_deg
-    parts = ["dofview", "render", shlex.quote(scene_path), "-o", shlex.quote(out),
-             "--width", str(camera.width), "--height", str(camera.height),
-             # "--eye=…" form: argparse would take a value like "-1.5,0,2" for an option
-             "--eye=" + ",".join(f"{v:.6g}" for v in eye), "--target=" + ",".join(f"{v:.6g}" for v in target),
-             "--up=" + ",".join(f"{v:.6g}" for v in -camera.R[1]),  # image-up: keeps the camera's roll
-             "--fov", f"{fov:.6g}", "--focus", f"{lens.focus:.6g}",
-             "--aperture", f"{lens.aperture * REFERENCE_WIDTH / camera.width:.6g}",
-             "--exposure", f"{tm.exposure:.6g}", "--gamma", f"{tm.gamma:.6g}",
-             "--tau", f"{settings.tau:.6g}", "--k", f"{settings.k:.6g}", "--opacity-norm", settings.opacity_norm,
-             "--cut", settings.cut, "--kernel", settings.kernel,
+    """A ``dofview render`` line that reproduces a view (the viewer's "copy as command"), from the
+    command-line form of each object: :meth:`Camera.to_args` (an --eye/--target camera whose
+    target is the focus distance ahead), :meth:`Lens.to_args` (the strength at that camera's
+    reference width, so the same line with another --width gives the same picture, scaled),
+    :meth:`Tonemap.to_args` and :meth:`RenderSettings.to_args`."""
+    parts = ["dofview", "render", scene_path, "-o", out,
+             *camera.to_args(lens.focus if math.isfinite(lens.focus) else 1.0),
+             *lens.to_args(camera.width, REFERENCE_WIDTH), *tm.to_args(colour_space), *settings.to_args(),
              "--colour-space", colour_space]
-    if any(tm.background):
-        parts += ["--background", ",".join(f"{c:.4g}" for c in tm.background)]
-    if tm.operator.name != default_operator(colour_space) or tm.operator.params():
-        parts += ["--tonemap", tm.operator.name]
-        parts += [f"--{tm.operator.name}-{k.replace('_', '-')}={v:.6g}" for k, v in tm.operator.params().items()]
-    if settings.blend_linear:
-        parts.append("--blend-linear")
-    return " ".join(parts)
-
-
+    return shlex.join(parts)

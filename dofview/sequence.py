@@ -8,7 +8,6 @@ together from the finished frames.
 
 from __future__ import annotations
 
-import json
 import math
 import re
 from dataclasses import dataclass, replace
@@ -17,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from dofview.api import exr_header, save_render
+from dofview.api import exr_header, read_header, save_render
 from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
@@ -175,17 +174,21 @@ def stale_setting(exr: Path, expected: dict[str, object], lens_samples: int) -> 
     the frame this command would render): the first differing name of :data:`RECORDED`,
     "lens_samples" or "scene"; "header" when the file cannot be read; None when it agrees.
 
-    Numbers agree to a relative 1e-5 (EXR stores float attributes in single precision, and an
-    auto focus may differ in its last digits on another machine of a farm)."""
+    Both sides are read back through api.read_header and written out again by each type's
+    ``to_dict`` (:func:`_recorded`), so they compare in one form, and a header written before an
+    entry was recorded (``near``) holds that entry's default. Numbers agree to a relative 1e-5
+    (EXR stores float attributes in single precision, and an auto focus may differ in its last
+    digits on another machine of a farm)."""
     from dofview.io.exr import read_exr
 
     try:
         _, header = read_exr(exr)
+        recorded = _recorded(header)
     except DofviewError:
         return "header"
+    wanted = _recorded(expected)
     for name in RECORDED:
-        key = f"dofview:{name}"
-        if not _same(_parsed(header.get(key)), _parsed(expected.get(key))):
+        if not _same(recorded.get(name), wanted.get(name)):
             return name
     if int(header.get("dofview:lens_samples", 0)) != lens_samples:
         return "lens_samples"
@@ -195,14 +198,20 @@ def stale_setting(exr: Path, expected: dict[str, object], lens_samples: int) -> 
     return None
 
 
-def _parsed(value: object) -> object:
-    """A header value with its JSON strings read."""
-    if isinstance(value, str) and value[:1] in "{[":
-        try:
-            return json.loads(value)
-        except ValueError:
-            return value
-    return value
+def _recorded(header: dict[str, object]) -> dict[str, object]:
+    """The :data:`RECORDED` entries of an EXR header as plain data: each object read back
+    (api.read_header) and written out by its own ``to_dict``; absent entries are missing."""
+    r = read_header(header)
+    out = {name: r[name] for name in ("exposure", "gamma", "frames") if name in r}
+    if "camera" in r:
+        out["camera"] = r["camera"].to_dict()
+    if "lens" in r:
+        out["lens"] = {**r["lens"].to_dict(), **r["lens_request"].to_dict()}
+    if "settings" in r:
+        out["render"] = {**r["settings"].to_dict(), "colour_space": r["colour_space"]}
+    if "tonemap" in r:
+        out["tonemap"] = r["tonemap"].to_dict()["tonemap"]
+    return out
 
 
 def _same(a: object, b: object) -> bool:

@@ -23,7 +23,7 @@ from dofview.io import load_scene
 from dofview.io.png import write_png
 from dofview.lens import Lens
 from dofview.rendering.focus import auto_focus
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering import get_backend
 
 SCENES = ("two_planes.ply", "burger.ply", "guitar.compressed.ply", "biker.spz", "tap.spz", "room")
 SIZE = (240, 180)
@@ -49,7 +49,7 @@ def main() -> None:
     for name in SCENES:
         scene = room_scene() if name == "room" else load_scene(args.scenes / name, progress=False)
         guess = guess_up(scene)
-        renderer = QuadBackend(scene)
+        renderer = get_backend("quad", scene)
         for row, cam in enumerate((framing_camera(scene, *SIZE), overview_camera(scene, *SIZE, up=guess.vector))):
             frame = renderer.render(cam, Lens(1.0, 0.0))
             focus = auto_focus(frame)

@@ -50,11 +50,11 @@ def rows_for(scene_path: Path):
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
     from dofview.tonemap import OPERATORS, Tonemap
     from dofview.tonemap.stats import clipped_crushed
 
-    r = QuadBackend(load_scene(scene_path))
+    r = get_backend("quad", load_scene(scene_path))
     cam = load_cameras_json(ROOT / "samples" / "lamp_cameras.json")[0].resized(*SIZE)
     frame = r.render(cam, Lens(2.5, 0.0))
     rows = []

@@ -21,7 +21,7 @@ def main() -> int:
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
     from dofview.tonemap import OPERATORS, Tonemap
     from dofview.tonemap.stats import frame_stats
 
@@ -30,7 +30,7 @@ def main() -> int:
     p.add_argument("--height", type=int, default=480)
     p.add_argument("--repeats", type=int, default=9)
     args = p.parse_args()
-    r = QuadBackend(load_scene(ROOT / "samples" / "lamp.ply"))
+    r = get_backend("quad", load_scene(ROOT / "samples" / "lamp.ply"))
     cam = load_cameras_json(ROOT / "samples" / "lamp_cameras.json")[0].resized(args.width, args.height)
     frame = r.render(cam, Lens(3.0, 0.0))
     w, h = args.width, args.height

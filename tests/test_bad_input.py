@@ -30,7 +30,7 @@ from dofview.io.cameras import save_cameras_json
 from dofview.io.exr import read_exr
 from dofview.io.ply import read_ply, scene_rows, write_ply
 from dofview.lens import Lens
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.quad import QuadBackend
 
 VIEW = ["--width", "24", "--height", "16", "--focus", "5"]
 DOFVIEW = str(Path(sys.executable).with_name("dofview"))

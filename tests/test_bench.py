@@ -66,7 +66,7 @@ def test_quad_fragment_estimate_draws_what_the_shader_draws():
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     scene = load_scene(SAMPLES / "cards.ply", progress=False)
     cam = load_cameras_json(SAMPLES / "cards_cameras.json")[0].resized(80, 60)

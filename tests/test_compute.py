@@ -18,11 +18,11 @@ from dofview.io import load_scene
 from dofview.io.cameras import load_cameras_json
 from dofview.io.exr import read_exr
 from dofview.lens import Lens
-from dofview.rendering import AUTO_ORDER, get_backend
+from dofview.rendering import AUTO_ORDER, BACKENDS, get_backend
 from dofview.rendering import compute as compute_mod
 from dofview.rendering.compute import PER_GAUSSIAN_BYTES, ComputeBackend
-from dofview.rendering.gpusort import require_compute
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.gpu_sort import require_compute
+from dofview.rendering.quad import QuadBackend
 from dofview.rendering.reference import project, render_reference
 from dofview.scene import GaussianScene
 
@@ -216,6 +216,22 @@ def test_gl_without_compute_shaders_is_unavailable_and_auto_falls_back(monkeypat
         get_backend("compute", scene)
     assert get_backend("auto", scene).name == "quad"
     assert AUTO_ORDER[0] == "quad"  # the order measured here (docs/BENCHMARKS.md "Compute backend")
+
+
+def test_backends_probe_the_gl_before_uploading_the_scene():
+    """Each backend's require() runs before anything is uploaded: on an OpenGL 4.1 context that can
+    do nothing else (no buffer() to upload with), every backend and "auto" refuse with the reason."""
+
+    class OldGL:
+        version_code = 410
+        info: dict = {}
+
+    scene = random_scene(n=50)
+    for name in BACKENDS:
+        with pytest.raises(BackendUnavailable, match=f"the {name} backend needs OpenGL 4.3"):
+            get_backend(name, scene, ctx=OldGL())
+    with pytest.raises(BackendUnavailable, match="no renderer backend runs here"):
+        get_backend("auto", scene, ctx=OldGL())
 
 
 def test_render_cli_with_compute(tmp_path):

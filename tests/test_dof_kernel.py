@@ -25,7 +25,7 @@ from dofview.frame import RenderSettings
 from dofview.io import load_scene
 from dofview.lens import disk_peak_and_area, disk_profile, disk_support, erf
 from dofview.rendering import backend_class
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.quad import QuadBackend
 from dofview.rendering.reference import render_reference
 from dofview.tonemap import Tonemap, display
 
@@ -131,7 +131,8 @@ def test_disk_profile_model():
 
 def test_disk_kernel_setting_and_option():
     """``--kernel disk`` reaches RenderSettings; the disk kernel refuses the conserving cut."""
-    from dofview.options import add_lens_args, add_view_args, settings_from_args
+    from dofview.options import add_lens_args, add_view_args
+    from dofview.request import settings_from_args
 
     parser = argparse.ArgumentParser()
     add_view_args(parser)

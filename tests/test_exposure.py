@@ -11,7 +11,7 @@ import pytest
 from dofview.cli import build_parser, main
 from dofview.errors import DofviewError
 from dofview.io.exr import read_exr
-from dofview.options import tonemap_from_args
+from dofview.request import tonemap_from_args
 from dofview.tonemap import Tonemap, display
 
 CARDS = Path(__file__).resolve().parents[1] / "samples" / "cards.ply"

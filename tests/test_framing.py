@@ -135,7 +135,7 @@ def test_a_room_is_seen_from_inside_along_its_length():
     assert np.all(cam.centre > lo) and np.all(cam.centre < hi)  # inside, not outside the walls
     assert cam.forward @ [1.0, 0.0, 0.0] > 0.999  # level, along x, the room's longest horizontal axis
     assert -cam.R[1] @ guess.vector > 0.999  # upright
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
     renderer = QuadBackend(room)
     frame = renderer.render(cam, Lens(1.0, 0.0))
     renderer.release()

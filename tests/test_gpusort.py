@@ -1,4 +1,4 @@
-"""The GPU prefix sum and radix sort (rendering/gpusort.py) against numpy, the oracle: random,
+"""The GPU prefix sum and radix sort (rendering/gpu_sort.py) against numpy, the oracle: random,
 all-equal, few-valued (stability), ±0, negative and huge-range depths, 1M keys, short key widths."""
 
 import numpy as np
@@ -7,8 +7,8 @@ import pytest
 from dofview.camera import Camera
 from dofview.rendering.compute import ComputeBackend
 from dofview.rendering.gl import headless_context
-from dofview.rendering.gpusort import BLOCK, GpuRadixSort, GpuScan
-from dofview.rendering.sort import argsort_keys
+from dofview.rendering.gpu_sort import BLOCK, GpuRadixSort, GpuScan
+from dofview.rendering.depth_order import argsort_keys
 from dofview.scene import GaussianScene
 
 

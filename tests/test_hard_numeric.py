@@ -19,7 +19,7 @@ from dofview.io.exr import HALF_MAX, read_exr
 from dofview.io.ply import read_ply, scene_rows, write_ply
 from dofview.io.png import read_png
 from dofview.lens import Lens, PhysicalLens
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.quad import QuadBackend
 from dofview.rendering.reference import project, render_reference
 from dofview.scene import SH_C0, GaussianScene
 

@@ -21,6 +21,6 @@ def test_wheel_ships_the_shaders(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     shaders = sorted(f.name for f in (ROOT / "dofview" / "rendering" / "glsl").iterdir() if f.is_file())
     assert shaders and all(f"dofview/rendering/glsl/{s}" in names for s in shaders)
-    assert "dofview/rendering/quads.py" in names
+    assert "dofview/rendering/quad.py" in names
     # the package only: the tests' scene files (tests/data, ~10 MB) and the samples stay out
     assert not [n for n in names if n.startswith(("tests/", "samples/")) or n.endswith((".ply", ".spz"))]

@@ -8,7 +8,7 @@ from dofview.camera import look_at
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.packing import pack_core
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.quad import QuadBackend
 
 CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 160, 120, 60)
 

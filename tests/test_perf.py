@@ -18,8 +18,8 @@ from dofview.io.ply import read_ply, write_ply
 from dofview.lens import Lens
 from dofview.rendering import base as renderer_module
 from dofview.rendering.packing import gpu_arrays
-from dofview.rendering.quads import QuadBackend
-from dofview.rendering.sort import camera_depths, front_to_back
+from dofview.rendering.quad import QuadBackend
+from dofview.rendering.depth_order import camera_depths, front_to_back
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 
@@ -158,9 +158,22 @@ def test_perf_script_measurements_hang_together():
     assert all(s["count"] > 0 and s["front_to_back_ms"] > 0 for s in res["sort"]["rows"])
 
 
+def test_perf_measures_the_backend_it_is_given():
+    """--raster reaches the renderers through get_backend: the compute backend's own per-Gaussian
+    buffers (splat, tile rectangle, order, tile count) show in its memory figures."""
+    from dofview.rendering.compute import PER_GAUSSIAN_BYTES
+
+    res = {r: run(("memory",), quick=True, frame_sizes=(), raster=r)["memory"] for r in ("quad", "compute")}
+    assert res["quad"]["raster"] == "quad" and res["compute"]["raster"] == "compute"
+    for q, c in zip(res["quad"]["rows"], res["compute"]["rows"]):
+        assert (q["degree"], q["packed"]) == (c["degree"], c["packed"])
+        # quad adds a 4 B order; compute its PER_GAUSSIAN_BYTES, its offsets and the radix sort's buffers
+        assert c["bytes_per_gaussian"] - q["bytes_per_gaussian"] >= PER_GAUSSIAN_BYTES - 4
+
+
 def test_sorting_runs_off_the_viewers_ui_thread(monkeypatch):
     """The viewer's sort request returns while the sort itself is still running on another thread."""
-    from dofview.rendering import sorter
+    from dofview.rendering import sort_thread as sorter
 
     release, threads = threading.Event(), []
 
@@ -174,7 +187,7 @@ def test_sorting_runs_off_the_viewers_ui_thread(monkeypatch):
     try:
         means = random_scene(1000, seed=7).means
         cam = benchmark_camera(64, 36)
-        worker.request(means, cam, generation=1)  # returns although the sort cannot finish yet
+        worker.request(means, cam)  # returns although the sort cannot finish yet
         assert worker.pending and worker.result() is None
         release.set()
         for _ in range(1000):
@@ -182,7 +195,7 @@ def test_sorting_runs_off_the_viewers_ui_thread(monkeypatch):
             if res is not None:
                 break
             threading.Event().wait(0.01)
-        assert res is not None and res.generation == 1
+        assert res is not None and res.view_key == cam.view_key()
         assert threads and threads[0] is not threading.main_thread()
         np.testing.assert_array_equal(res.order, front_to_back(means, cam)[::-1])
     finally:

@@ -8,7 +8,7 @@ from dofview.camera import look_at
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.accumulate import accumulate
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.quad import QuadBackend
 from dofview.rendering.reference import render_reference
 from dofview.scene import GaussianScene
 from dofview.tonemap import OPERATORS, Tonemap, display, to_uint8
@@ -151,7 +151,7 @@ def test_lens_change_does_not_resort(monkeypatch):
     scene = random_scene(seed=2)
     r = QuadBackend(scene)
     calls = []
-    import dofview.rendering.quads as mod
+    import dofview.rendering.quad as mod
 
     real = mod.front_to_back
     monkeypatch.setattr(mod, "front_to_back", lambda m, c: calls.append(1) or real(m, c))

@@ -12,7 +12,7 @@ from dofview.frame import RenderSettings
 from dofview.io import load_scene
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens
-from dofview.rendering.quads import QuadBackend
+from dofview.rendering.quad import QuadBackend
 from dofview.rendering.reference import render_reference
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"

@@ -1,7 +1,7 @@
 import numpy as np
 
 from dofview.camera import look_at
-from dofview.rendering.sort import (
+from dofview.rendering.depth_order import (
     argsort_keys,
     camera_depths,
     depth_keys,

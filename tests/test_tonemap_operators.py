@@ -172,7 +172,7 @@ def _lamp_view(name: str) -> tuple[float, float]:
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     r = QuadBackend(load_scene(ROOT / "samples" / "lamp.ply"))
     frame = r.render(load_cameras_json(ROOT / "samples" / "lamp_cameras.json")[0].resized(160, 120), Lens(2.5, 0.0))
@@ -223,7 +223,7 @@ def test_sequence_frames_are_smoothed_with_the_frame_interval(tmp_path):
     from dofview.io import load_scene
     from dofview.io.exr import read_exr
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     r = QuadBackend(load_scene(ROOT / "samples" / "lamp.ply"))
     cams = [look_at([0, 0, 0], target, 64, 48, 50) for target in ([-2, 0.3, 4.5], [1.0, -0.55, 4.5])]  # room, lamp
@@ -249,7 +249,7 @@ def test_render_stats_joint(tmp_path):
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
     from dofview.io.exr import read_exr
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     lamp, cameras = ROOT / "samples" / "lamp.ply", ROOT / "samples" / "lamp_cameras.json"
     base = [sys.executable, "-m", "dofview", "render", str(lamp), "-o", str(tmp_path / "j.exr"), "--width", "64",
@@ -286,7 +286,7 @@ def test_display_referred_scenes_keep_their_trained_look(path):
 
     from dofview.io import load_scene
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     scene = load_scene(path, progress=False)
     assert scene.colour_space == "srgb"
@@ -316,7 +316,7 @@ def test_hdr_version_of_a_real_capture_neither_clips_nor_crushes():
     from dofview.bench.tonemap_consistency import hdr_variant
     from dofview.io import load_scene
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     path = ROOT / "tests" / "data" / "biker.spz"
     r = QuadBackend(hdr_variant(load_scene(path, progress=False)))
@@ -409,7 +409,7 @@ def test_smoothed_statistics_change_the_curve_less_along_an_orbit():
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     r = QuadBackend(load_scene(ROOT / "samples" / "lamp.ply", progress=False))
     start = load_cameras_json(ROOT / "samples" / "lamp_cameras.json")[0]

@@ -74,7 +74,7 @@ def test_joint_statistics_are_pooled_over_the_views_and_locked(display, tmp_path
     from dofview.api import joint_stats
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
     from dofview.tonemap import Reinhard05
 
     cameras = ROOT / "samples" / "lamp_cameras.json"

@@ -18,7 +18,7 @@ from dofview.io.exr import read_exr  # noqa: E402
 from dofview.io.png import read_png, write_png  # noqa: E402
 from dofview.lens import Lens  # noqa: E402
 from dofview.cli import main  # noqa: E402
-from dofview.rendering.quads import QuadBackend  # noqa: E402
+from dofview.rendering.quad import QuadBackend  # noqa: E402
 from dofview.rendering.reference import sh_colour  # noqa: E402
 from dofview.scene import SH_C0, GaussianScene  # noqa: E402
 from dofview.train.dataset import load_dataset  # noqa: E402

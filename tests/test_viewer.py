@@ -85,6 +85,9 @@ def session(display, tmp_path_factory):
     bad.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\nnot numbers\n")
     near, mid, far = (card_centre(n, cam) for n in ("near", "mid", "far"))
     script = [
+        # refinement off: this session holds the window's single pass to the headless render
+        # (the refined stages have their own tests in test_progressive.py and test_viewer_model.py)
+        {"do": "set", "lens_samples_max": 0},
         {"do": "frames", "n": 2},
         {"do": "report", "path": out / "start.json"},
         {"do": "set", "focus": 8.0, "aperture": 30.0, "ev": 0.5, "gamma": 2.0, "background": [0.1, 0.2, 0.3]},
@@ -135,7 +138,7 @@ def session(display, tmp_path_factory):
 def headless_display(report: dict, focus_aid: bool = False) -> np.ndarray:
     """The same view rendered by the headless QuadBackend and tonemapped by display_image."""
     from dofview.io import load_scene
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     c = report["camera"]
     camera = Camera(c["width"], c["height"], c["fx"], c["fy"], c["cx"], c["cy"], np.array(c["R"]), np.array(c["T"]))

@@ -14,8 +14,8 @@ from conftest import random_scene
 from dofview.camera import look_at
 from dofview.errors import DofviewError
 from dofview.lens import PhysicalLens
-from dofview.rendering.sort import front_to_back
-from dofview.rendering.sorter import SortThread
+from dofview.rendering.depth_order import front_to_back
+from dofview.rendering.sort_thread import SortThread
 from dofview.viewer.controls import (
     MIN_POLE_ANGLE,
     ORBIT_RAD_PER_PX,
@@ -148,9 +148,9 @@ def test_settings_build_the_render_objects():
     s = ViewerSettings(focus=3.0, aperture=40.0)
     cam = look_at((0, 0, 0), (0, 0, 1), 800, 600, 60.0)
     assert s.lens(cam).aperture == 40.0 and s.lens(cam).focus == 3.0
-    s.dof = False
+    s.dof_enabled = False
     assert s.lens(cam).aperture == 0.0
-    s.dof, s.physical = True, True
+    s.dof_enabled, s.physical = True, True
     expected = PhysicalLens(s.focal_mm, s.fnumber, s.sensor_mm, s.units_per_metre).strength(cam.fx, 3.0)
     assert s.lens(cam).aperture == pytest.approx(expected)
     s.ev = 1.0
@@ -168,14 +168,14 @@ def test_sort_thread_matches_front_to_back():
     sorter = SortThread()
     try:
         for cam in cams:  # later requests replace earlier ones still waiting
-            sorter.request(scene.means, cam, generation=7)
+            sorter.request(scene.means, cam)
         deadline = time.monotonic() + 30.0
         while sorter.pending and time.monotonic() < deadline:
             time.sleep(0.01)
         res = sorter.result()
     finally:
         sorter.close()
-    assert res is not None and res.generation == 7 and res.view_key == cams[-1].view_key()
+    assert res is not None and res.view_key == cams[-1].view_key()
     assert np.array_equal(res.order, front_to_back(scene.means, cams[-1])[::-1])
 
 
@@ -209,7 +209,7 @@ def test_click_to_focus_depth_on_the_cards(width):
     from dofview.io.cameras import load_cameras_json
     from dofview.lens import Lens
     from dofview.rendering.focus import depth_at
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering.quad import QuadBackend
 
     samples = Path(__file__).resolve().parents[1] / "samples"
     view = load_cameras_json(samples / "cards_cameras.json")[0]

@@ -64,8 +64,8 @@ def biker(display, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("biker")
     moved = [{"do": "set", "focus": 2.0, "aperture": 400.0}, {"do": "orbit", "dx": 150, "dy": 40},
              {"do": "zoom", "steps": 2}]
-    script = ([{"do": "still", "samples": 2}, {"report": "start"}, {"do": "set", "dof": False}, {"report": "no_dof"},
-               {"do": "set", "dof": True}, *moved, {"report": "moved"}]
+    script = ([{"do": "still", "samples": 2}, {"report": "start"}, {"do": "set", "dof_enabled": False}, {"report": "no_dof"},
+               {"do": "set", "dof_enabled": True}, *moved, {"report": "moved"}]
               + key("r") + [{"report": "reset"}, {"do": "copy_command"}, {"report": "copied"},
                             {"do": "open", "path": tmp / "missing.ply"}, {"report": "error"}]
               + key("u") + [{"report": "up"}])

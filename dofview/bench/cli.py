@@ -18,18 +18,8 @@ from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.frame import OPACITY_NORMS, RenderSettings
 from dofview.io.cameras import load_cameras_json, select_camera
-from dofview.options import (
-    add_scene_args,
-    add_view_args,
-    blur_value,
-    camera_from_args,
-    focus_value,
-    load_scene_arg,
-    number,
-    say_notes,
-    tau_value,
-)
-from dofview.scene import GaussianScene
+from dofview.options import add_scene_args, add_view_args, blur_value, focus_value, number, tau_value
+from dofview.request import OpenedScene, camera_from_args, open_scene
 from dofview.tonemap import Tonemap
 
 
@@ -39,17 +29,15 @@ def _auto_cameras(scene_path: Path) -> Path | None:
     return p if p.is_file() else None
 
 
-def bench_cameras(args: argparse.Namespace, scene: GaussianScene) -> list[Camera]:
+def bench_cameras(args: argparse.Namespace, opened: OpenedScene) -> list[Camera]:
     """The bench's cameras: one per ``--view`` entry (comma-separated) of the cameras file."""
     views = [v.strip() for v in str(args.view).split(",") if v.strip()]
-    if args.cameras is None and not (args.eye or args.target):
-        args.cameras = _auto_cameras(args.scene)
-    if args.cameras is None:
-        return [camera_from_args(args, scene, default_size=(args.bench_width, args.bench_width * 3 // 4))]
-    cams = load_cameras_json(args.cameras)
+    if opened.cameras is None:
+        return [camera_from_args(args, opened, default_size=(args.bench_width, args.bench_width * 3 // 4))]
+    cams = load_cameras_json(opened.cameras)
     out = []
     for v in views:
-        cam = select_camera(cams, v, str(args.cameras))
+        cam = select_camera(cams, v, str(opened.cameras))
         w = args.width or args.bench_width
         h = args.height or max(1, round(cam.height * w / cam.width))
         out.append(cam.resized(w, h))
@@ -163,15 +151,16 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or Path(f"{'study' if args.views else 'bench'}_{args.scene.stem}")
     if out.exists() and not out.is_dir():
         raise DofviewError(f"{out}: exists and is not a folder")
-    scene = load_scene_arg(args)
+    opened = open_scene(args, cameras=_auto_cameras(args.scene))
+    scene = opened.scene
     command = "dofview bench " + " ".join(_bench_argv(args))
     if args.views:  # real scenes without cameras: the study against the physical thin lens
         from dofview.bench.study import run_cli
 
-        say_notes(args)
+        opened.say_notes()
         return run_cli(args, scene, out, command)
-    cameras = bench_cameras(args, scene)
-    say_notes(args)
+    cameras = bench_cameras(args, opened)
+    opened.say_notes()
     t0 = time.perf_counter()
     result = run_bench(scene, cameras, cfg, base, tm, scaling=not args.no_scaling)
     out.mkdir(parents=True, exist_ok=True)

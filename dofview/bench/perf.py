@@ -83,7 +83,7 @@ def _reset_peak() -> bool:
         return False
 
 
-def load_child(path: str) -> dict:
+def load_child(path: str, raster: str = "quad") -> dict:
     """Load ``path`` as the viewer does (read, pack, upload) and report times and peak memory.
 
     Run in a fresh process (``--load-child``) so that the peak belongs to this load alone. The GL
@@ -94,12 +94,12 @@ def load_child(path: str) -> dict:
 
     from dofview.io.ply import read_ply
     from dofview.rendering.gl import headless_context
+    from dofview.rendering import get_backend
     from dofview.rendering.packing import gpu_arrays
-    from dofview.rendering.quads import QuadBackend
 
     ctx = headless_context()
     probe = read_ply(path)  # warms imports; released before the baseline
-    QuadBackend(probe.subset(np.arange(min(probe.count, 16))), ctx).release()
+    get_backend(raster, probe.subset(np.arange(min(probe.count, 16))), ctx).release()
     del probe
     resettable = _reset_peak()
     base_kib = _status_kib("VmRSS")
@@ -107,7 +107,7 @@ def load_child(path: str) -> dict:
     t0 = time.perf_counter()
     scene = read_ply(path)
     t1 = time.perf_counter()
-    renderer = QuadBackend(scene, ctx)
+    renderer = get_backend(raster, scene, ctx)
     ctx.finish()
     t2 = time.perf_counter()
     _, traced_peak = tracemalloc.get_traced_memory()
@@ -124,14 +124,14 @@ def load_child(path: str) -> dict:
     }
 
 
-def measure_load_file(path: str | Path) -> dict:
+def measure_load_file(path: str | Path, raster: str = "quad") -> dict:
     """Run :func:`load_child` for ``path`` in a fresh Python process and return its report."""
-    out = subprocess.run([sys.executable, "-m", "dofview.bench.perf", "--load-child", str(path)],
+    out = subprocess.run([sys.executable, "-m", "dofview.bench.perf", "--load-child", str(path), "--raster", raster],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def measure_load(sizes: tuple[int, ...], folder: Path) -> dict:
+def measure_load(sizes: tuple[int, ...], folder: Path, raster: str = "quad") -> dict:
     from dofview.bench.synth import random_scene
     from dofview.io.ply import write_ply
 
@@ -140,7 +140,7 @@ def measure_load(sizes: tuple[int, ...], folder: Path) -> dict:
         for i, n in enumerate(sizes):
             path = folder / f"random_{n}_deg3.ply"
             write_ply(random_scene(n, degree=3, seed=1), path)
-            rows.append(measure_load_file(path))
+            rows.append(measure_load_file(path, raster))
             path.unlink()
             bar.update(i + 1, info=f"{n} Gaussians")
     return {"rows": rows}
@@ -149,7 +149,7 @@ def measure_load(sizes: tuple[int, ...], folder: Path) -> dict:
 # ---- sort ------------------------------------------------------------------------------------
 def measure_sort(sizes: tuple[int, ...], repeat: int) -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
-    from dofview.rendering.sort import (
+    from dofview.rendering.depth_order import (
         argsort_keys,
         camera_depths,
         depth_keys,
@@ -180,13 +180,13 @@ def measure_sort(sizes: tuple[int, ...], repeat: int) -> dict:
 
 
 def measure_ui_stall(n: int, repeat: int) -> dict:
-    """The viewer's sort thread (dofview.rendering.sorter) sorting ``n`` Gaussians for a new view while
-    this thread plays the UI, polling for the result every millisecond as a frame loop would: the
+    """The quad backend's sort thread (dofview.rendering.sort_thread, as the viewer runs it) sorting
+    ``n`` Gaussians for a new view while this thread plays the UI, polling for the result every millisecond as a frame loop would: the
     longest gap between its polls against the sort time. A sort that held the interpreter lock
     would stall the UI for the whole sort (gap ≈ sort time)."""
     from dofview.bench.synth import random_scene
     from dofview.camera import look_at
-    from dofview.rendering.sorter import SortThread
+    from dofview.rendering.sort_thread import SortThread
 
     means = random_scene(n, seed=7).means
     worker = SortThread()
@@ -194,7 +194,7 @@ def measure_ui_stall(n: int, repeat: int) -> dict:
     try:
         for i in range(repeat):
             cam = look_at((0.1 * i, 0.0, 0.0), (0.0, 0.0, 10.0), 1280, 720, 60.0)
-            worker.request(means, cam, generation=i)
+            worker.request(means, cam)
             last = start = time.perf_counter()
             longest = 0.0
             while (res := worker.result()) is None:
@@ -209,18 +209,19 @@ def measure_ui_stall(n: int, repeat: int) -> dict:
 
 
 # ---- GPU memory --------------------------------------------------------------------------------
-def measure_memory(n: int) -> dict:
+def measure_memory(n: int, raster: str = "quad") -> dict:
     from dofview.bench.synth import random_scene
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     rows = []
     for degree in (0, 3):
         scene = random_scene(n, degree=degree, seed=3)
         for packed in (True, False):
-            r = QuadBackend(scene, packed=packed)
+            r = get_backend(raster, scene, packed=packed)
             rows.append({"degree": degree, "packed": packed, "bytes_per_gaussian": r.bytes_per_gaussian})
             r.release()
-    return {"count": n, "rows": rows, "note": "includes the 4 B/Gaussian draw-order buffer"}
+    return {"count": n, "raster": raster, "rows": rows, "note": "includes the backend's own per-Gaussian buffers "
+            "(the quad backend's: the 4 B/Gaussian draw order)"}
 
 
 # ---- drawing ---------------------------------------------------------------------------------
@@ -262,11 +263,11 @@ def _with_hidden(scene, where: str):
                          sh_rest=twice(scene.sh_rest), name=f"{scene.name} + hidden")
 
 
-def measure_culling(n: int, size: tuple[int, int], frames: int) -> dict:
+def measure_culling(n: int, size: tuple[int, int], frames: int, raster: str = "quad") -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
     from dofview.frame import RenderSettings
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     cam = benchmark_camera(*size)
     visible = random_scene(n, degree=3, seed=4)
@@ -275,7 +276,7 @@ def measure_culling(n: int, size: tuple[int, int], frames: int) -> dict:
                 _with_hidden(visible, "frustum")), ("+ same count behind the camera", _with_hidden(visible, "behind")))
     with Progress("perf: culling", len(variants) * 2, delay=0.0) as bar:
         for name, scene in variants:
-            r = QuadBackend(scene)
+            r = get_backend(raster, scene)
             for aperture in (0.0, 100.0):
                 row = {"variant": name, "count": scene.count, "aperture": aperture}
                 row.update(time_frames(r, cam, Lens(FOCUS, aperture), RenderSettings(), frames))
@@ -284,7 +285,7 @@ def measure_culling(n: int, size: tuple[int, int], frames: int) -> dict:
                 rows.append(row)
                 bar.update(len(rows))
             r.release()
-    return {"size": list(size), "rows": rows}
+    return {"size": list(size), "raster": raster, "rows": rows}
 
 
 def quad_fragments(pr: dict, width: int, height: int, shape: str) -> np.ndarray:
@@ -321,12 +322,12 @@ def measure_fragments(n: int, size: tuple[int, int]) -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
     from dofview.frame import RenderSettings
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
     from dofview.rendering.reference import project
 
     cam = benchmark_camera(*size)
     scene = random_scene(n, degree=0, seed=5)
-    renderer = QuadBackend(scene)
+    renderer = get_backend("quad", scene)  # the fragments of its quads are what is counted
     rows = []
     for aperture in (0.0, 100.0):
         lens = Lens(FOCUS, aperture)
@@ -347,12 +348,12 @@ def measure_fragments(n: int, size: tuple[int, int]) -> dict:
     return {"count": n, "size": list(size), "rows": rows}
 
 
-def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3) -> dict:
+def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3, raster: str = "quad") -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
     from dofview.frame import RenderSettings
     from dofview.lens import Lens
+    from dofview.rendering import get_backend
     from dofview.rendering.gl import headless_context
-    from dofview.rendering.quads import QuadBackend
 
     ctx = headless_context()
     cam = benchmark_camera(*FRAME_SIZE)
@@ -360,11 +361,11 @@ def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3) -> dict
     with Progress("perf: frames", len(sizes) * len(APERTURES), delay=0.0) as bar:
         for n in sizes:
             scene = random_scene(n, degree=degree, seed=6)
-            r = QuadBackend(scene, ctx)
+            r = get_backend(raster, scene, ctx)
             for aperture in APERTURES:
                 lens = Lens(FOCUS, aperture)
                 row = {"count": n, "degree": degree, "aperture": aperture}
-                r._view_key = None  # force one fresh sort so its time is the one reported
+                r.forget_order()  # one fresh sort, so that its time is the one reported
                 row.update(time_frames(r, cam, lens, RenderSettings(), frames))
                 row["sort_ms"] = r.stats.sort_ms
                 r.draw(cam, lens, RenderSettings(), count=True)
@@ -374,23 +375,24 @@ def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3) -> dict
                 bar.update(len(rows), info=f"{n} A={aperture:g}")
             r.release()
             del scene
-    return {"size": list(FRAME_SIZE), "frames": frames, "gl_renderer": ctx.info["GL_RENDERER"],
+    return {"size": list(FRAME_SIZE), "frames": frames, "raster": raster,
+            "gl_renderer": ctx.info["GL_RENDERER"],
             "gl_version": ctx.info["GL_VERSION"], "rows": rows}
 
 
-def measure_bottleneck(n: int, frames: int) -> dict:
+def measure_bottleneck(n: int, frames: int, raster: str = "quad") -> dict:
     """What limits the frame: time at A = 0 as the image shrinks (fragment work falls with the pixel
     count, vertex work stays) down to 64×36 (≈ vertex work alone), for SH degree 3 and 0."""
     from dofview.bench.synth import benchmark_camera, random_scene
     from dofview.frame import RenderSettings
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     sizes = (FRAME_SIZE, (FRAME_SIZE[0] // 2, FRAME_SIZE[1] // 2), (FRAME_SIZE[0] // 4, FRAME_SIZE[1] // 4), (64, 36))
     rows = []
     with Progress("perf: bottleneck", 2 * len(sizes), delay=0.0) as bar:
         for degree in (3, 0):
-            r = QuadBackend(random_scene(n, degree=degree, seed=6))
+            r = get_backend(raster, random_scene(n, degree=degree, seed=6))
             for w, h in sizes:
                 cam = benchmark_camera(w, h)
                 row = {"count": n, "degree": degree, "size": [w, h]}
@@ -480,33 +482,39 @@ def plot(results: dict, folder: Path) -> list[Path]:
 
 
 # ---- command line ----------------------------------------------------------------------------
-def run(only: tuple[str, ...], quick: bool, frame_sizes: tuple[int, ...], culling_count: int = 100_000) -> dict:
-    """Run the chosen sub-measurements; ``quick`` shrinks every size for a smoke run."""
+def run(only: tuple[str, ...], quick: bool, frame_sizes: tuple[int, ...], culling_count: int = 100_000,
+        raster: str = "quad") -> dict:
+    """Run the chosen sub-measurements on backend ``raster`` (a key of
+    :data:`dofview.rendering.BACKENDS`, or ``"auto"``; "fragments" counts the quad backend's quads
+    whatever it is); ``quick`` shrinks every size for a smoke run."""
     results: dict = {"quick": quick, "machine": f"{os.cpu_count()} CPU threads, load average "
                      f"{os.getloadavg()[0]:.1f} at start"}
     if "load" in only:
         with tempfile.TemporaryDirectory(prefix="dofview-perf-") as tmp:
-            results["load"] = measure_load((20_000, 50_000) if quick else (250_000, 500_000, 1_000_000), Path(tmp))
+            results["load"] = measure_load((20_000, 50_000) if quick else (250_000, 500_000, 1_000_000), Path(tmp),
+                                           raster)
     if "sort" in only:
         results["sort"] = measure_sort((10_000, 100_000) if quick else (100_000, 300_000, 1_000_000, 3_000_000),
                                        3 if quick else 7)
     if "ui" in only:
         results["ui"] = measure_ui_stall(10_000 if quick else 1_000_000, 3 if quick else 7)
     if "memory" in only:
-        results["memory"] = measure_memory(1000 if quick else 100_000)
+        results["memory"] = measure_memory(1000 if quick else 100_000, raster)
     if "culling" in only:
         results["culling"] = measure_culling(5_000 if quick else culling_count, (320, 180) if quick else FRAME_SIZE,
-                                             2 if quick else 5)
+                                             2 if quick else 5, raster)
     if "fragments" in only:
         results["fragments"] = measure_fragments(5_000 if quick else 200_000, (320, 180) if quick else FRAME_SIZE)
     if "frames" in only:
-        results["frames"] = measure_frames(frame_sizes, 3 if quick else 30)
+        results["frames"] = measure_frames(frame_sizes, 3 if quick else 30, raster=raster)
     if "bottleneck" in only:
-        results["bottleneck"] = measure_bottleneck(5_000 if quick else frame_sizes[0], 3 if quick else 30)
+        results["bottleneck"] = measure_bottleneck(5_000 if quick else frame_sizes[0], 3 if quick else 30, raster)
     return results
 
 
 def main(argv: list[str] | None = None) -> int:
+    from dofview.rendering import BACKENDS
+
     ap = argparse.ArgumentParser(prog="python -m dofview.bench.perf", description=__doc__.split("\n")[0])
     ap.add_argument("--only", default=",".join(m for m in MEASUREMENTS if m not in ("frames", "bottleneck")),
                     help=f"comma-separated sub-measurements of {', '.join(MEASUREMENTS)} (default: all but "
@@ -516,16 +524,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--culling-count", type=int, default=100_000, help="visible Gaussians for 'culling'")
     ap.add_argument("--json", type=Path, default=None, help="write all results here")
     ap.add_argument("--plots", type=Path, default=Path("docs/images"), help="folder for perf_*.png")
+    ap.add_argument("--raster", default="quad", choices=["auto", *BACKENDS],
+                    help="renderer backend to measure (default quad, the reference)")
     ap.add_argument("--load-child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.load_child:
-        print(json.dumps(load_child(args.load_child)))
+        print(json.dumps(load_child(args.load_child, args.raster)))
         return 0
     only = tuple(m.strip() for m in args.only.split(",") if m.strip())
     unknown = [m for m in only if m not in MEASUREMENTS]
     if unknown:
         ap.error(f"unknown measurement(s) {', '.join(unknown)}; choose from {', '.join(MEASUREMENTS)}")
-    results = run(only, args.quick, tuple(int(s) for s in args.frame_sizes.split(",")), args.culling_count)
+    results = run(only, args.quick, tuple(int(s) for s in args.frame_sizes.split(",")), args.culling_count, args.raster)
     text = json.dumps(results, indent=1)
     print(text)
     if args.json:

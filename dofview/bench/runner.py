@@ -43,7 +43,7 @@ from dofview.rendering import Renderer, get_backend
 from dofview.rendering.accumulate import accumulate
 from dofview.rendering.focus import auto_focus, depth_range
 from dofview.rendering.reference import project
-from dofview.rendering.sort import front_to_back
+from dofview.rendering.depth_order import front_to_back
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap
 
@@ -255,8 +255,8 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
 
 
 def _settings_cols(st: RenderSettings) -> dict:
-    return {"tau": st.tau, "tau_255": round(st.tau * 255, 3), "k": st.k, "opacity_norm": st.opacity_norm,
-            "blend_linear": st.blend_linear}
+    """A row's settings columns: RenderSettings.to_dict, and τ in 255ths for reading."""
+    return {**st.to_dict(), "tau_255": round(st.tau * 255, 3)}
 
 
 def _find(rows: list[dict], view: int, focus: float, aperture: float, st: RenderSettings) -> dict:

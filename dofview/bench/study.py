@@ -28,7 +28,7 @@ from dofview.framing import extent, guess_up, overview_camera
 from dofview.lens import Lens
 from dofview.progress import Progress
 from dofview.rendering import Renderer
-from dofview.rendering.progressive import ProgressiveLens
+from dofview.rendering.progressive import render_lens_samples
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap
 
@@ -107,17 +107,17 @@ def study_variants() -> dict[str, RenderSettings]:
 def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderSettings], ref_samples: int,
               acc_samples=(1, 2, 4, 8, 16, 32, 64), frames: int = 3, tm: Tonemap | None = None) -> list[dict]:
     """Rows of (case, method, samples, psnr, ssim, time_ratio) for every variant and every count of
-    the progressive accumulation (the viewer's, rendering/progressive.py: its R2 lens points, not
-    the reference's spiral, so even at ``ref_samples`` it is a separate estimate). ``time_ratio``
+    the progressive thin lens (the viewer's stage of n sub-aperture passes, rendering/progressive.py,
+    a separate estimate from the reference even at ``ref_samples``). ``time_ratio``
     is the median frame time over that of the pinhole frame at the default τ on the same camera,
-    all timed round-robin; accumulation counts n pinhole frames (τ = 0). The variant named
+    all timed round-robin; accumulation counts n pass frames. The variant named
     "pinhole" is drawn at aperture 0."""
     tm = tm or Tonemap()
     timer = FrameTimer(renderer.ctx)
     hdr = renderer.scene.colour_space == "linear"
     base = RenderSettings()
     rows: list[dict] = []
-    steps = len(cases) * (ref_samples + max(acc_samples) + len(variants) * (frames + 2) + frames + 1)
+    steps = len(cases) * (ref_samples + len(acc_samples) + len(variants) * (frames + 2) + frames + 1)
     with Progress("study", steps) as prog:
         tick = Steps(prog)
         for i, case in enumerate(cases):
@@ -133,16 +133,11 @@ def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderS
             truth = make_references(renderer, cam, lens, base, ref_samples, False, tick).physical
             info = {"view": case.view, "focus": lens.focus, "aperture": lens.aperture,
                     "focus_pct": case.focus_pct, "coc_px": case.coc_px}
-            acc = ProgressiveLens(renderer)
-            tick.stage(f"{label}: progressive lens sample", max(acc_samples))
-            for n in range(1, max(acc_samples) + 1):
-                acc.add(cam, lens, base)
+            tick.stage(f"{label}: progressive lens stage", len(acc_samples))
+            for n in acc_samples:
+                e = errors(render_lens_samples(renderer, cam, lens, base, n), truth, tm, hdr)
                 tick()
-                if n in acc_samples:
-                    acc.resolve()
-                    e = errors(renderer.read(), truth, tm, hdr)
-                    rows.append({**info, "method": f"accumulation {n}", "samples": n, **e, "time_ratio": float(n)})
-            acc.release()
+                rows.append({**info, "method": f"accumulation {n}", "samples": n, **e, "time_ratio": float(n)})
             tick.stage(f"{label}: single-pass variant", len(variants))
             for (name, st), ln, t in zip(variants.items(), lenses, times[1:]):
                 e = errors(renderer.render(cam, ln, st), truth, tm, hdr)

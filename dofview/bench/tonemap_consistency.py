@@ -135,13 +135,13 @@ def scenes(width: int, height: int, frames: int, degrees: float):
     """(name, renderer, cameras) of the two benchmark scenes."""
     from dofview.io import load_scene
     from dofview.io.cameras import load_cameras_json
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     lamp = load_scene(ROOT / "samples" / "lamp.ply", progress=False)
     start = load_cameras_json(ROOT / "samples" / "lamp_cameras.json")[0]
-    yield "lamp.ply", QuadBackend(lamp), orbit(start.centre + 3.0 * start.forward, start.centre, frames, degrees, width, height)
+    yield "lamp.ply", get_backend("quad", lamp), orbit(start.centre + 3.0 * start.forward, start.centre, frames, degrees, width, height)
     biker = hdr_variant(load_scene(ROOT / "tests" / "data" / "biker.spz", progress=False))
-    yield "biker-hdr", QuadBackend(biker), object_orbit(biker, frames, degrees, width, height)
+    yield "biker-hdr", get_backend("quad", biker), object_orbit(biker, frames, degrees, width, height)
 
 
 SRGB_SCENES = ("tests/data/biker.spz", "tests/data/burger.ply", "tests/data/guitar.compressed.ply", "tests/data/tap.spz",
@@ -155,7 +155,7 @@ def fidelity(width: int, height: int) -> None:
     from dofview.bench.metrics import psnr
     from dofview.io import load_scene
     from dofview.lens import Lens
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
     from dofview.tonemap.operator import luminance
 
     adaptive = [n for n, c in OPERATORS.items() if c.adaptive]
@@ -163,7 +163,7 @@ def fidelity(width: int, height: int) -> None:
     print("|---|" + "---|" * len(adaptive))
     for path in SRGB_SCENES:
         scene = load_scene(ROOT / path, progress=False)
-        r = QuadBackend(scene)
+        r = get_backend("quad", scene)
         frame = r.render(object_orbit(scene, 1, 0.0, width, height)[0], Lens(1.0, 0.0))
         mask = frame.alpha > 0.5
         trained = r.display_image(Tonemap()) / 255.0

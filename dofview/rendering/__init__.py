@@ -13,10 +13,11 @@ import moderngl
 
 from dofview.errors import BackendUnavailable, DofviewError
 from dofview.rendering.base import Renderer
+from dofview.rendering.gl import headless_context
 from dofview.scene import GaussianScene
 
 BACKENDS: dict[str, str] = {
-    "quad": "dofview.rendering.quads:QuadBackend",
+    "quad": "dofview.rendering.quad:QuadBackend",
     "compute": "dofview.rendering.compute:ComputeBackend",
 }
 """Backend name → ``"module:class"``; ``"auto"`` picks among them (see :func:`get_backend`)."""
@@ -38,7 +39,9 @@ def backend_class(name: str) -> type[Renderer]:
 
 
 def get_backend(name: str, scene: GaussianScene, ctx: moderngl.Context | None = None, **kw) -> Renderer:
-    """A renderer for ``scene`` on backend ``name`` (a key of :data:`BACKENDS`, or ``"auto"``).
+    """A renderer for ``scene`` on backend ``name`` (a key of :data:`BACKENDS`, or ``"auto"``: the
+    first of :data:`AUTO_ORDER` whose :meth:`~Renderer.require` probe passes on this GL; the scene
+    is uploaded only to the backend that takes it).
 
     Raises:
         BackendUnavailable: the named backend cannot run on this GL.
@@ -46,11 +49,14 @@ def get_backend(name: str, scene: GaussianScene, ctx: moderngl.Context | None = 
     """
     if name != "auto":
         return backend_class(name)(scene, ctx=ctx, **kw)
+    ctx = ctx or headless_context()
     reasons = []
     for cand in AUTO_ORDER:
+        cls = backend_class(cand)
         try:
-            return backend_class(cand)(scene, ctx=ctx, **kw)
-        except BackendUnavailable as e:
+            cls.require(ctx, scene.count)
+            return cls(scene, ctx=ctx, **kw)
+        except BackendUnavailable as e:  # from the probe, or a shader this GL cannot compile
             reasons.append(f"{cand}: {e}")
     raise BackendUnavailable("no renderer backend runs here (" + "; ".join(reasons) + ")")
 

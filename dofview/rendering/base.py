@@ -1,14 +1,23 @@
 """The renderer contract every backend meets, and what all backends share: the scene's storage
 buffers, the float targets a frame is drawn into, the read-back and the display (tone-mapping) pass.
 
-A backend implements :meth:`Renderer.draw`; the viewer, the CLI, the benchmark and the tests use
-only the methods here, so any backend serves all of them. Backends are named in one place,
-:data:`dofview.rendering.BACKENDS`.
+:meth:`Renderer.draw` is one template for every backend: size the targets, bring the draw order
+up to date (:meth:`Renderer.sort`, each backend its own way), set camera and lens, run the
+backend's splatting step (:meth:`Renderer._splat`: :meth:`~Renderer._prepare`, then
+:meth:`~Renderer._splat_range` over the whole order; ``RenderSettings.dof == "sliced"`` instead
+blends contiguous ranges of that order as depth slices, rendering/sliced.py), record whether the
+targets hold display-encoded colour (:attr:`Renderer.targets_encoded`) and the counters
+(:attr:`Renderer.stats`). A backend implements :meth:`~Renderer.require` (probed before the scene is
+uploaded), :meth:`~Renderer.sort`, :meth:`~Renderer.front_to_back`, :meth:`~Renderer._prepare`
+and :meth:`~Renderer._splat_range`; the viewer, the CLI, the benchmark, progressive refinement and the
+tests use only the public methods here, so any backend serves all of them. Backends are named in one
+place, :data:`dofview.rendering.BACKENDS`.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import moderngl
@@ -18,7 +27,8 @@ from dofview.camera import Camera
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
 from dofview.lens import Lens
 from dofview.rendering.display import DisplayPass
-from dofview.rendering.gl import check_size, float32_uniform, headless_context
+from dofview.errors import BackendUnavailable
+from dofview.rendering.gl import GL_REQUIRED, check_size, float32_uniform, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, decode
@@ -29,11 +39,13 @@ UPLOAD_CHUNK = 1 << 16  # Gaussians packed and uploaded per step; even, so packe
 
 @dataclass
 class DrawStats:
-    """Counters of the last draw: Gaussians drawn (not culled), total, sort time in ms."""
+    """What the renderer counts: Gaussians drawn by the last counted draw (not culled), total, the
+    last sort's time in ms and the views sent to a background sort (:meth:`Renderer.request_order`)."""
 
     drawn: int = 0
     total: int = 0
     sort_ms: float = 0.0
+    sort_requests: int = 0
 
 
 class Renderer(ABC):
@@ -51,15 +63,15 @@ class Renderer(ABC):
     """
 
     name = "base"
-    gpu_sort = False
-    """True when the backend sorts on the GPU inside :meth:`draw` (callers then need no sort thread)."""
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
         self.ctx = ctx or headless_context()
+        self.require(self.ctx, scene.count)  # before anything is uploaded
         self.scene = scene
-        self.encoded_scene = scene.colour_space == "srgb"
         self._encoded = self.encoded_scene
         self.stats = DrawStats(total=scene.count)
+        self._counter = self.ctx.buffer(reserve=4)  # Gaussians drawn, counted by the splatting step
+        self._view_key: bytes | None = None  # the view the current draw order was sorted for
         self.packed = packed
         self.colour_scale = colour_scale(scene) if packed else 1.0
         self._buffers = self._upload(scene, packed, self.colour_scale)
@@ -70,6 +82,27 @@ class Renderer(ABC):
         self._size: tuple[int, int] | None = None
         self.camera: Camera | None = None
         self.lens: Lens | None = None
+        self._sliced = None  # rendering/sliced.py's SlicedDof, made by the first sliced draw
+
+    @classmethod
+    def require(cls, ctx: moderngl.Context, count: int = 0) -> None:
+        """Raise :class:`BackendUnavailable` unless ``ctx`` can run this backend for a scene of
+        ``count`` Gaussians: a probe of the GL's capabilities, made before a scene is uploaded."""
+        if ctx.version_code < GL_REQUIRED:
+            need, have = (f"{v // 100}.{v % 100 // 10}" for v in (GL_REQUIRED, ctx.version_code))
+            raise BackendUnavailable(f"the {cls.name} backend needs OpenGL {need} (storage buffers); "
+                                     f"this context is {have}")
+
+    @property
+    def encoded_scene(self) -> bool:
+        """The scene's blended values are display-encoded (``scene.colour_space``, which the viewer
+        lets the user change, is read at each draw)."""
+        return self.scene.colour_space == "srgb"
+
+    @property
+    def targets_encoded(self) -> bool:
+        """The colour in the targets is display-encoded (an sRGB scene blended as trained), else linear."""
+        return self._encoded
 
     # ---- buffers ---------------------------------------------------------------------------
     def _upload(self, scene: GaussianScene, packed: bool, scale: float) -> dict[int, moderngl.Buffer]:
@@ -119,20 +152,84 @@ class Renderer(ABC):
         self.display_fbo = self.ctx.framebuffer(color_attachments=[self._display_rb])
         self._size = (width, height)
 
-    # ---- the backend's part -----------------------------------------------------------------
-    @abstractmethod
+    # ---- drawing: the template and the backend's part ---------------------------------------
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
-             count: bool = False, sort: bool = True) -> None:
-        """Splat the scene into ``colour_tex``/``depth_tex`` (no read-back). ``count``: also count
-        the Gaussians drawn into ``stats.drawn``; ``sort=False`` keeps the current order."""
+             count: bool = False) -> None:
+        """Splat the scene into ``colour_tex``/``depth_tex`` (no read-back), sorted for ``camera``
+        unless its order was asked for with :meth:`request_order` and is still on its way (then with
+        the last order). ``count``: also count the Gaussians drawn into ``stats.drawn``."""
+        self._targets(camera.width, camera.height)
+        self._order_for(camera)
+        self.camera, self.lens = camera, lens
+        if count:
+            self._counter.write(np.zeros(1, np.uint32).tobytes())
+        if settings.dof == "sliced":
+            if self._sliced is None:
+                from dofview.rendering.sliced import SlicedDof  # its shaders compile on first use
+
+                self._sliced = SlicedDof(self)
+            self._sliced.draw(camera, lens, settings, count)
+        else:
+            self._splat(camera, lens, settings, count)
+        self._encoded = self.encoded_scene and not settings.blend_linear
+        if count:
+            self.stats.drawn = int(np.frombuffer(self._counter.read(), np.uint32)[0])
+
+    def _splat(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+        """The splatting step: the whole scene, in the current order, into :attr:`fbo`'s targets
+        (sized for ``camera``); ``count``: add the Gaussians drawn to the zeroed ``_counter``."""
+        self._prepare(camera, lens, settings, count)
+        self._splat_range(0, self.scene.count, self.fbo)
+
+    @abstractmethod
+    def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+        """Set up splatting with ``camera``, ``lens`` and ``settings`` for the :meth:`_splat_range`
+        calls that follow (``count``: they add the Gaussians drawn to ``_counter``)."""
+
+    @abstractmethod
+    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer) -> None:
+        """Blend Gaussians [first, end) of the front-to-back order, as :meth:`_prepare` set up, into
+        ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized; cleared first)."""
+
+    @abstractmethod
+    def front_to_back(self) -> np.ndarray:
+        """(N,) uint32 the current draw order, nearest first, on the CPU (the sliced mode cuts it)."""
 
     @abstractmethod
     def sort(self, camera: Camera) -> None:
-        """Bring the draw order up to date for ``camera`` (a no-op when the view did not move)."""
+        """Bring the draw order up to date for ``camera`` now (a no-op when the view did not move)."""
 
-    def set_order(self, back_to_front: np.ndarray, view_key: bytes | None = None) -> None:
-        """Use a draw order computed elsewhere (the viewer's sort thread); backends that sort on the
-        GPU ignore it."""
+    def forget_order(self) -> None:
+        """Drop the draw order, so that the next draw sorts afresh (a benchmark times that sort)."""
+        self._view_key = None
+
+    def _order_for(self, camera: Camera) -> None:
+        """The order step of :meth:`draw` (backends that sort in the background override it)."""
+        self.sort(camera)
+
+    def request_order(self, camera: Camera) -> bool:
+        """Ask for the draw order of ``camera``'s view without waiting (the viewer, every frame): a
+        backend whose sort is slow sorts in the background and :meth:`draw` uses the last order until
+        the new one is in; the others sort now. True when a background sort finished and its order
+        was taken in since the last call (what was drawn with the older order is stale)."""
+        self.sort(camera)
+        return False
+
+    @property
+    def sort_pending(self) -> bool:
+        """An order asked for with :meth:`request_order` is still on its way."""
+        return False
+
+    def fill_targets(self, write: Callable[[moderngl.Framebuffer], None], encoded: bool, camera: Camera,
+                     lens: Lens) -> None:
+        """Put an image made elsewhere (progressive refinement's average) into the targets, so that
+        :meth:`read` and the display pass serve it like a draw: ``write`` draws it into :attr:`fbo`
+        (colour, depth sums); ``encoded``: its colour is display-encoded; ``camera``, ``lens``: the
+        view it shows (the focus aid reads the lens)."""
+        self._targets(camera.width, camera.height)
+        write(self.fbo)
+        self._encoded = encoded
+        self.camera, self.lens = camera, lens
 
     def read(self) -> Frame:
         """Read the last draw back as a linear :class:`Frame` (rows top to bottom)."""
@@ -183,6 +280,9 @@ class Renderer(ABC):
         """Free the GPU objects of this renderer (the context stays)."""
         for b in self._buffers.values():
             b.release()
+        self._counter.release()
+        if self._sliced is not None:
+            self._sliced.release()
         self._release_backend()
         self._display.release()
         if self._size is not None:

@@ -1,7 +1,7 @@
 """The compute backend: a GPU-resident tile rasteriser in GLSL compute shaders.
 
 Per frame, all on the GPU: (the depth sort, only when the view moved: depth keys of all Gaussians
-and a radix sort, gpusort.py) → preprocess, one thread per Gaussian (project.glsl, the quad path's
+and a radix sort, gpu_sort.py) → preprocess, one thread per Gaussian (project.glsl, the quad path's
 projection, CoC and opacity normalisation; the support box → a rectangle of tiles) → count
 and scan the tiles each Gaussian touches, in depth order → duplicate one (tile, Gaussian) pair per
 touched tile → stable radix sort by tile (the depth order survives within each tile) → each tile's
@@ -22,9 +22,9 @@ from dofview.errors import BackendUnavailable, DofviewError
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.base import Renderer
-from dofview.rendering.gpusort import (
+from dofview.rendering.gl import compute_shader
+from dofview.rendering.gpu_sort import (
     GpuRadixSort,
-    _program,
     groups,
     max_buffer_bytes,
     require_compute,
@@ -64,17 +64,23 @@ class ComputeBackend(Renderer):
     """
 
     name = "compute"
-    gpu_sort = True
+
+    @classmethod
+    def require(cls, ctx: moderngl.Context, count: int = 0) -> None:
+        """Compute shaders with storage buffers (OpenGL 4.3), and a splat buffer for ``count``
+        Gaussians within the storage-buffer limit."""
+        super().require(ctx, count)
+        require_compute(ctx)
+        limit, n = max_buffer_bytes(ctx), max(count, 1)
+        if SPLAT_BYTES * n > limit:
+            raise DofviewError(f"{count} Gaussians need a {SPLAT_BYTES * n / 2**20:.0f} MiB splat buffer; this "
+                               f"OpenGL binds at most {limit / 2**20:.0f} MiB (use --raster quad)")
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True,
                  max_pairs: int | None = None, tile: int | None = None, pix: int | None = None) -> None:
         super().__init__(scene, ctx, packed)
-        require_compute(self.ctx)
         self.limit = max_buffer_bytes(self.ctx)
         n = max(scene.count, 1)
-        if SPLAT_BYTES * n > self.limit:
-            raise DofviewError(f"{scene.count} Gaussians need a {SPLAT_BYTES * n / 2**20:.0f} MiB splat buffer; this "
-                               f"OpenGL binds at most {self.limit / 2**20:.0f} MiB (use --raster quad)")
         self.max_pairs = min(max_pairs or self.limit // 4, self.limit // 4)
         """Most (tile, Gaussian) pairs one pass holds; a frame with more is drawn in depth slices."""
         llvmpipe = "llvmpipe" in self.ctx.info["GL_RENDERER"]
@@ -88,14 +94,14 @@ class ComputeBackend(Renderer):
         """Most loop iterations one invocation may run (None: no limit)."""
         self.sorter = GpuRadixSort(self.ctx)
         defs = self.shader_defines
-        self._keys_prog = _program(self.ctx, "sort_depth_keys.comp", defs)
-        self._pre = _program(self.ctx, "tiles_preprocess.comp", {**defs, "TILE": f"{self.tile}u"})
+        self._keys_prog = compute_shader(self.ctx, "sort_depth_keys.comp", defs)
+        self._pre = compute_shader(self.ctx, "tiles_preprocess.comp", {**defs, "TILE": f"{self.tile}u"})
         tile_def = {"TILE": f"{self.tile}u"}
-        self._count = _program(self.ctx, "tiles_count.comp", tile_def)
-        self._dup = _program(self.ctx, "tiles_duplicate.comp", tile_def)
-        self._ranges_prog = _program(self.ctx, "tiles_ranges.comp")
-        self._longest_prog = _program(self.ctx, "tiles_longest.comp")
-        self._blend = _program(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u",
+        self._count = compute_shader(self.ctx, "tiles_count.comp", tile_def)
+        self._dup = compute_shader(self.ctx, "tiles_duplicate.comp", tile_def)
+        self._ranges_prog = compute_shader(self.ctx, "tiles_ranges.comp")
+        self._longest_prog = compute_shader(self.ctx, "tiles_longest.comp")
+        self._blend = compute_shader(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u",
                                                               **({"KERNEL_SELECT": 1} if llvmpipe else {})})
         self._order = self.ctx.buffer(reserve=4 * n)
         self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)
@@ -103,16 +109,16 @@ class ComputeBackend(Renderer):
         self._offsets = self.ctx.buffer(reserve=4 * (n + 1))
         self._depth_keys = self._offsets  # the sort's keys, dead once sorted: the counts reuse them
         self._group_totals = self.ctx.buffer(reserve=4 * -(-(n + 1) // 256))
-        self._counter = self.ctx.buffer(reserve=4)
         self._longest = self.ctx.buffer(reserve=4)
         self._pairs: list[moderngl.Buffer] = []  # tile keys, values, and the two sort scratch buffers
         self._pair_capacity = 0
         self._ranges: moderngl.Buffer | None = None
-        self._view_key: bytes | None = None
         self.pairs = 0
         """(tile, Gaussian) pairs of the last draw."""
         self.slices = 0
         """Depth slices the last draw needed (1 unless its pairs exceeded :attr:`max_pairs`)."""
+        self._tiles = (0, 0)  # tiles across and down of the frame being drawn
+        self._tau = 0.0
 
     @property
     def gpu_bytes(self) -> int:
@@ -142,6 +148,8 @@ class ComputeBackend(Renderer):
 
     def front_to_back(self) -> np.ndarray:
         """(N,) uint32 the current depth order, read back (for tests and tools; drawing never reads it)."""
+        if not self.scene.count:  # GL maps no zero-sized range
+            return np.zeros(0, np.uint32)
         return np.frombuffer(self._order.read(size=4 * self.scene.count), np.uint32).copy()
 
     # ---- buffers -------------------------------------------------------------------------------
@@ -157,34 +165,34 @@ class ComputeBackend(Renderer):
         return self._pairs
 
     # ---- drawing -------------------------------------------------------------------------------
-    def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
-             count: bool = False, sort: bool = True) -> None:
-        """Rasterise the scene into the float targets (no read-back but the pair totals).
-        ``sort=False`` keeps the last depth order (a view change then draws with a stale order)."""
-        w, h = camera.width, camera.height
-        self._targets(w, h)
-        if sort or self._view_key is None:
-            self.sort(camera)
-        self.camera, self.lens = camera, lens
-        tiles = (-(-w // self.tile), -(-h // self.tile))
-        n = self.scene.count
-        if count:
-            self._counter.write(np.zeros(1, np.uint32).tobytes())
-        slices = [(0, 0, 0, 0)]
+    def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+        """Preprocess and scan the tile counts of all Gaussians (no read-back but the pair totals)."""
+        self._tiles = (-(-camera.width // self.tile), -(-camera.height // self.tile))
+        self._tau = settings.tau
         self.pairs = 0
-        if n:
-            self._preprocess(camera, lens, settings, count, tiles)
-            self.pairs = self._scan_counts(n)
-            slices = self._slices(n, self.pairs)
+        if self.scene.count:
+            self._preprocess(camera, lens, settings, count, self._tiles)
+            self.pairs = self._scan_counts(self.scene.count)
+        self._ranges_for(self._tiles)
+
+    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer) -> None:
+        """Rasterise Gaussians [first, end) of the depth order into ``target``'s textures (the pair
+        offsets of a range short of the whole order come back: 8 bytes)."""
+        n = self.scene.count
+        if (first, end) == (0, n):
+            base, pairs = 0, self.pairs
+        elif end > first:
+            base = int(np.frombuffer(self._offsets.read(size=4, offset=4 * first), np.uint32)[0])
+            pairs = int(np.frombuffer(self._offsets.read(size=4, offset=4 * end), np.uint32)[0]) - base
+        else:
+            base = pairs = 0
+        slices = self._slices(first, end, base, pairs) if pairs else [(first, first, 0, 0)]
         self.slices = len(slices)
-        self._ranges_for(tiles)
-        self.colour_tex.bind_to_image(0, read=True, write=True)
-        self.depth_tex.bind_to_image(1, read=True, write=True)
+        colour, depth = target.color_attachments[:2]
+        colour.bind_to_image(0, read=True, write=True)
+        depth.bind_to_image(1, read=True, write=True)
         for i, part in enumerate(slices):
-            self._draw_slice(*part, tiles, settings.tau, resume=i > 0)
-        self._encoded = self.encoded_scene and not settings.blend_linear
-        if count:
-            self.stats.drawn = int(np.frombuffer(self._counter.read(), np.uint32)[0])
+            self._draw_slice(*part, self._tiles, self._tau, resume=i > 0)
 
     def _preprocess(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
                     tiles: tuple[int, int]) -> None:
@@ -216,21 +224,23 @@ class ComputeBackend(Renderer):
         self.sorter.scan.run(self._offsets, n + 1)
         return total
 
-    def _slices(self, n: int, total: int) -> list[tuple[int, int, int, int]]:
-        """Depth slices (first, end Gaussian in depth order, first pair, pairs) whose pairs fit
-        :attr:`max_pairs`. The offsets are read back only when there is more than one."""
+    def _slices(self, first: int, end: int, base: int, total: int) -> list[tuple[int, int, int, int]]:
+        """Depth slices (first, end Gaussian in depth order, first pair, pairs) of Gaussians
+        [first, end) (pairs from ``base``) whose pairs fit :attr:`max_pairs`. The offsets are read
+        back only when there is more than one."""
         if total <= self.max_pairs:
-            return [(0, n, 0, total)]
-        offsets = np.frombuffer(self._offsets.read(size=4 * (n + 1)), np.uint32).astype(np.int64)
+            return [(first, end, base, total)]
+        offsets = np.frombuffer(self._offsets.read(size=4 * (end - first + 1), offset=4 * first),
+                                np.uint32).astype(np.int64)
         if np.any(np.diff(offsets) > self.max_pairs):
             raise DofviewError(f"one Gaussian covers more than {self.max_pairs} tiles; this OpenGL's storage buffers "
                                "are too small for the compute backend (use --raster quad)")
-        slices, first = [], 0
-        while first < n:
-            end = int(np.searchsorted(offsets, offsets[first] + self.max_pairs, side="right")) - 1
-            end = n if end >= n else end
-            slices.append((first, end, int(offsets[first]), int(offsets[end] - offsets[first])))
-            first = end
+        slices, at = [], 0
+        while at < end - first:
+            stop = int(np.searchsorted(offsets, offsets[at] + self.max_pairs, side="right")) - 1
+            stop = end - first if stop >= end - first else stop
+            slices.append((first + at, first + stop, int(offsets[at]), int(offsets[stop] - offsets[at])))
+            at = stop
         return slices
 
     def _ranges_for(self, tiles: tuple[int, int]) -> None:
@@ -295,7 +305,7 @@ class ComputeBackend(Renderer):
 
     def _release_backend(self) -> None:
         for obj in (self._order, self._splats, self._rects, self._offsets, self._group_totals,
-                    self._counter, self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
+                    self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
                     self._ranges_prog, self._longest_prog, self._blend):
             if obj is not None:
                 obj.release()

@@ -13,7 +13,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from dofview.errors import DofviewError
+from dofview.errors import BackendUnavailable, DofviewError
 
 _INCLUDE = re.compile(r'^\s*#include\s+(?:"([^"]+)"|(\w+))\s*$', re.M)
 GL_REQUIRED = 430  # SSBOs and atomics in the vertex stage
@@ -36,6 +36,21 @@ def load_shader(name: str, defines: dict[str, object] | None = None) -> str:
         head, _, rest = src.partition("\n")
         src = head + "\n" + "".join(f"#define {k} {v}\n" for k, v in defines.items()) + rest
     return src
+
+
+def compute_shader(ctx: moderngl.Context, name: str, defines: dict[str, object] | None = None) -> moderngl.ComputeShader:
+    """The compute shader ``glsl/name`` with ``defines`` set (see :func:`load_shader`).
+
+    Raises:
+        BackendUnavailable: this GL cannot compile it (no compute shaders, or a driver limit the
+            kernel exceeds), naming the file and the compiler's first error line.
+    """
+    try:
+        return ctx.compute_shader(load_shader(name, defines))
+    except moderngl.Error as e:
+        lines = [line.strip() for line in str(e).splitlines() if line.strip()] or ["unknown error"]
+        why = next((line for line in lines if "error" in line.lower() and line != lines[0]), lines[0])
+        raise BackendUnavailable(f"this OpenGL cannot compile {name}: {why}") from None
 
 
 _MISSING_GL = (

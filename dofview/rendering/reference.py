@@ -8,6 +8,9 @@ and the depth order is an exact float64 stable sort of the means' camera depths.
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 import numpy as np
 
 from dofview.camera import Camera
@@ -25,6 +28,8 @@ from dofview.lens import (
     kernel_shape,
     normalise_opacity,
 )
+from dofview.rendering.sliced import COMPOSITE, SLICE_RULE, full_radius_limit
+from dofview.rendering.slices import assign_slices, signed_coc, sliced_image
 from dofview.scene import SH_C0, GaussianScene
 from dofview.tonemap import decode
 
@@ -170,3 +175,36 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
         rgba[..., :3] = decode(out[..., :3]).astype(np.float32)
     frame = Frame(rgba=rgba, depth=depth_from_weighted(zacc, out[..., 3]), encoded=encoded)
     return (frame, near_cut) if margins else frame
+
+
+def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
+                            settings: RenderSettings = RenderSettings(dof="sliced"), tile: int = 16,
+                            composite: str = COMPOSITE) -> Frame:
+    """The sliced mode (rendering/sliced.py) on the CPU: each slice of slices.py's rule, taken from
+    this reference's own float64 depths, rendered by :func:`render_reference` as a pinhole (τ = 0)
+    sub-scene, the huge-CoC front and back layers with the lens and ``settings``, then blurred and
+    composited by slices.sliced_image (``composite``: its mode, default the GL path's). Depth: each layer's under the pinhole transmittance of the
+    layers in front, as the GL path composites it."""
+    z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
+    live = np.nonzero(z > settings.near)[0]
+    slicing = assign_slices(signed_coc(z[live], lens), SLICE_RULE)
+    per_splat, pinhole = replace(settings, dof="splat"), replace(settings, tau=0.0, dof="splat")
+    layers, radii = [], []
+    for v in range(-1, slicing.count + 1):
+        members = live[slicing.index == v]
+        if members.size:
+            huge = v in (-1, slicing.count)
+            layers.append(render_reference(scene.subset(members), camera, lens if huge else Lens(lens.focus, 0.0),
+                                           per_splat if huge else pinhole, tile))
+            radii.append(0.0 if huge else float(slicing.radius[v]))
+    encoded = scene.colour_space == "srgb" and not settings.blend_linear
+    if not layers:
+        return render_reference(scene, camera, lens, per_splat, tile)
+    rgba = sliced_image([f.rgba for f in layers], radii, encoded, blades=settings.blades,
+                        rotation=math.radians(settings.blade_rotation),
+                        max_full_radius=full_radius_limit(settings.blades), mode=composite)
+    trans, zsum = np.ones(rgba.shape[:2]), np.zeros(rgba.shape[:2])
+    for f in layers:
+        zsum += trans * f.alpha * f.depth
+        trans *= 1.0 - f.alpha
+    return Frame(rgba=rgba, depth=depth_from_weighted(zsum, 1.0 - trans), encoded=encoded)

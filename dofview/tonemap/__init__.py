@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dofview.tonemap.aces import Aces
 from dofview.tonemap.aces_fit import AcesFit
-from dofview.tonemap.base import (
+from dofview.tonemap.display import (
     SCENE_ENCODING_GAMMA,
     Tonemap,
     decode,
@@ -29,31 +29,10 @@ from dofview.tonemap.filmic import Filmic
 from dofview.tonemap.histogram import Histogram
 from dofview.tonemap.operator import Operator
 from dofview.tonemap.pbr_neutral import PbrNeutral
+from dofview.tonemap.registry import AUTO, LINEAR_DEFAULT, OPERATORS, default_operator, operator_from_dict
 from dofview.tonemap.reinhard05 import Reinhard05
 from dofview.tonemap.stats import Stats, StatsSmoother, frame_stats, pooled_stats
 
-AUTO = "auto"  # --tonemap's default: the operator follows the scene's colour space (default_operator)
-LINEAR_DEFAULT = "reinhard05"  # a linear HDR scene's: the most consistent along an orbit (docs/BENCHMARKS.md)
-
-OPERATORS: dict[str, type[Operator]] = {
-    "clip": Clip,
-    "reinhard05": Reinhard05,
-    "histogram": Histogram,
-    "bilateral": Bilateral,
-    "aces": Aces,
-    "aces-fit": AcesFit,
-    "pbr-neutral": PbrNeutral,
-    "filmic": Filmic,
-}
-
-
-
-def default_operator(colour_space: str) -> str:
-    """The operator ``--tonemap auto`` picks: ``clip`` for an sRGB-trained scene (shown exactly as
-    trained), :data:`LINEAR_DEFAULT` for a linear HDR one, whose range clip would cut."""
-    return "clip" if colour_space == "srgb" else LINEAR_DEFAULT
-
-
 __all__ = ["AUTO", "LINEAR_DEFAULT", "OPERATORS", "SCENE_ENCODING_GAMMA", "Aces", "AcesFit", "Bilateral", "Clip", "Filmic", "Histogram", "Operator",
            "PbrNeutral", "Reinhard05", "Stats", "StatsSmoother", "Tonemap", "decode", "display", "encode",
-           "default_operator", "frame_stats", "pooled_stats", "to_uint8"]
+           "default_operator", "frame_stats", "operator_from_dict", "pooled_stats", "to_uint8"]

@@ -15,16 +15,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from dofview.errors import DofviewError
-
-if TYPE_CHECKING:
-    from dofview.tonemap.stats import Stats
-
-LUMINANCE = (0.2126, 0.7152, 0.0722)  # Y of linear Rec.709 RGB
+from dofview.tonemap.stats import LUMINANCE, Stats
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:

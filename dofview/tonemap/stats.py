@@ -27,8 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from dofview.tonemap.operator import LUMINANCE
-
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # Y of linear Rec.709 RGB
 COVERED_ALPHA = 0.5
 STATS_BINS = 2048
 STATS_RANGE = (-32.0, 32.0)  # log2 radiance; 32 bins per stop

@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 
 from dofview.errors import DofviewError
-from dofview.options import load_scene_arg, number, vec3
+from dofview.options import number, vec3
+from dofview.request import open_scene
 
 NO_TORCH = "dofview train needs torch: pip install 'dofview[train]' (a CPU build is enough)"
 
@@ -33,6 +34,10 @@ def add_parser(sub) -> None:
                    help="full model, ablations without L_exp / L_foc, or a plain LDR fit (default full)")
     p.add_argument("--seed", type=number(0, None, integer=True, what="seed"), default=0)
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    p.add_argument("--torch-raster", choices=("sparse", "dense"), default="sparse",
+                   help="the differentiable torch rasteriser the fit runs on (not a GL backend: --raster names "
+                        "those): sparse per-pixel fragment lists (default, the faster: docs/TRAINING.md) or the "
+                        "dense per-tile one (the test oracle)")
     p.add_argument("--checkpoint", type=Path, help="checkpoint file (default OUTPUT.ckpt)")
     p.add_argument("--checkpoint-every", type=number(0, None, integer=True, what="checkpoint interval"), default=500,
                    help="steps between checkpoints, 0 = none (default 500)")
@@ -61,6 +66,7 @@ def add_parser(sub) -> None:
     p.add_argument("--eye", type=vec3, help="base camera position x,y,z (default: a framing camera)")
     p.add_argument("--target", type=vec3, help="point the cameras look at x,y,z")
     p.add_argument("--seed", type=number(0, None, integer=True, what="seed"), default=0)
+    _raster_option(p)
     p.set_defaults(run=run_make_dataset)
 
     p = sub.add_parser("train-eval", help="score trained scenes on a dataset's held-out HDR views",
@@ -69,7 +75,15 @@ def add_parser(sub) -> None:
     p.add_argument("dataset", type=Path)
     p.add_argument("scenes", type=Path, nargs="+")
     p.add_argument("--json", type=Path, help="also write the scores as JSON")
+    _raster_option(p)
     p.set_defaults(run=run_eval)
+
+
+def _raster_option(p: argparse.ArgumentParser) -> None:
+    from dofview.rendering import BACKENDS
+
+    p.add_argument("--raster", choices=("auto", *BACKENDS), default="quad",
+                   help="renderer backend of the renders (default quad, the reference)")
 
 
 def _torch() -> None:
@@ -91,7 +105,7 @@ def run_train(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
     config = TrainConfig(iterations=args.iterations, warmup=min(args.warmup, args.iterations), initial=args.gaussians,
                          max_gaussians=args.max_gaussians, variant=args.variant, seed=args.seed)
-    trainer = Trainer(dataset, config, args.device)
+    trainer = Trainer(dataset, config, args.device, args.torch_raster)
     ckpt = args.checkpoint or args.output.with_suffix(".ckpt")
     if args.resume:
         if not ckpt.is_file():
@@ -121,8 +135,8 @@ def run_make_dataset(args: argparse.Namespace) -> int:
     capture = Capture(views=args.views, held_out=args.held_out, width=args.width, height=args.height,
                       focal_mm=args.focal_mm, sensor_mm=args.sensor_mm, units_per_metre=args.units_per_metre,
                       ev_range=(args.ev_min, args.ev_max), orbit_deg=args.orbit, seed=args.seed)
-    scene = load_scene_arg(args)
-    path = generate(scene, args.output, capture, args.eye, args.target)
+    scene = open_scene(args).scene
+    path = generate(scene, args.output, capture, args.eye, args.target, raster=args.raster)
     print(f"{path}: {args.views} photos, {args.held_out} held-out HDR views", file=sys.stderr)
     return 0
 
@@ -139,7 +153,7 @@ def run_eval(args: argparse.Namespace) -> int:
     print("|---|---|---|---|")
     for path in args.scenes:
         scene = load_scene(path, progress=False)
-        ev = evaluate(scene, dataset)
+        ev = evaluate(scene, dataset, args.raster)
         rows.append({"scene": str(path), "colour_space": scene.colour_space, "log_psnr": ev.log_psnr,
                      "mean_log_psnr": ev.mean_log_psnr, "bright_ratio": ev.bright_ratio,
                      "mean_bright_ratio": ev.mean_bright_ratio})

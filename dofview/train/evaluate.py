@@ -74,13 +74,14 @@ def render_radiance(scene: GaussianScene, dataset: Dataset, renderer) -> list[np
     return [renderer.render(h.camera, Lens(1.0, 0.0), RenderSettings()).rgba[..., :3] * scale for h in dataset.held_out]
 
 
-def evaluate(scene: GaussianScene, dataset: Dataset) -> Evaluation:
-    """Scores of ``scene`` on ``dataset``'s held-out views (needs at least one)."""
-    from dofview.rendering.quads import QuadBackend
+def evaluate(scene: GaussianScene, dataset: Dataset, raster: str = "quad") -> Evaluation:
+    """Scores of ``scene`` on ``dataset``'s held-out views (needs at least one), rendered by backend
+    ``raster`` (:func:`dofview.rendering.get_backend`)."""
+    from dofview.rendering import get_backend
 
     if not dataset.held_out:
         raise DofviewError(f"{dataset.root}: the dataset has no held-out views (split: test) to evaluate on")
-    renderer = QuadBackend(scene)
+    renderer = get_backend(raster, scene)
     try:
         preds = render_radiance(scene, dataset, renderer)
     finally:

@@ -85,13 +85,15 @@ def orbit(eye: np.ndarray, target: np.ndarray, yaw_deg: float, pitch_deg: float,
 
 
 def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Capture(),
-             eye=None, target=None, render: RenderSettings = RenderSettings(), progress: bool = True) -> Path:
-    """Render a dataset of ``scene`` into the new folder ``out_dir``; returns its transforms.json.
+             eye=None, target=None, render: RenderSettings = RenderSettings(), progress: bool = True,
+             raster: str = "quad") -> Path:
+    """Render a dataset of ``scene`` into the new folder ``out_dir`` with backend ``raster``
+    (:func:`dofview.rendering.get_backend`); returns its transforms.json.
 
     The folder is built beside the target and renamed into place at the end, so a failure leaves
     nothing behind.
     """
-    from dofview.rendering.quads import QuadBackend
+    from dofview.rendering import get_backend
 
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -108,7 +110,7 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     eye, target = np.asarray(eye, np.float64), np.asarray(target, np.float64)
     rng = np.random.default_rng(capture.seed)
     angles = rng.uniform(-1, 1, (capture.views + capture.held_out, 2)) * [capture.orbit_deg, capture.orbit_deg / 2]
-    renderer = QuadBackend(scene)
+    renderer = get_backend(raster, scene)
     tmp = out.parent / f".{out.name}.partial"
     shutil.rmtree(tmp, ignore_errors=True)
     (tmp / "images").mkdir(parents=True)

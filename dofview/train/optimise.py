@@ -28,7 +28,8 @@ from dofview.progress import Progress
 from dofview.train.dataset import Dataset, load_photo
 from dofview.train.losses import aligned_loss, delta, photo_loss, tonemap
 from dofview.train.model import PARAMS, GaussianModel, initial_model
-from dofview.train.raster import rasterise, rotations
+from dofview.train.raster import rotations
+from dofview.train.sparse import RASTERISERS
 
 VARIANTS = ("full", "no-exp", "no-foc", "ldr")
 # The trainer splats with τ = 0 (3σ support): a τ cut would hide faint Gaussians from the gradient.
@@ -85,8 +86,12 @@ def pick_device(name: str = "auto") -> torch.device:
 class Trainer:
     """Fits a :class:`GaussianModel` to a :class:`Dataset` (see the module docstring)."""
 
-    def __init__(self, dataset: Dataset, config: TrainConfig = TrainConfig(), device: str = "auto") -> None:
+    def __init__(self, dataset: Dataset, config: TrainConfig = TrainConfig(), device: str = "auto",
+                 raster: str = "sparse") -> None:
+        if raster not in RASTERISERS:
+            raise DofviewError(f"--raster must be one of {', '.join(RASTERISERS)}, got {raster!r}")
         self.dataset, self.config = dataset, config
+        self.rasterise = RASTERISERS[raster]
         self.device = pick_device(device)
         if self.device.type == "cpu":
             # The tensors are small: one thread is as fast, and several spin-wait badly (10–20×
@@ -130,12 +135,12 @@ class Trainer:
         means, quats, scales, opacities, colours = self.model.activated()
         warm = self.step < self.config.warmup
         if self.config.variant == "ldr" or warm:
-            raster = rasterise(means, quats, scales, opacities, colours, shot.camera, Lens(1.0, 0.0),
+            raster = self.rasterise(means, quats, scales, opacities, colours, shot.camera, Lens(1.0, 0.0),
                                TRAIN_RENDER, retain_mean2d=True)
             if self.config.variant == "ldr":
                 return delta(raster.rgb, photo), raster
             return aligned_loss(raster.rgb, photo, shot.exposure, self.key, self.dataset.gamma), raster
-        raster = rasterise(means, quats, scales, opacities, colours, shot.camera, self.lenses[i],
+        raster = self.rasterise(means, quats, scales, opacities, colours, shot.camera, self.lenses[i],
                            TRAIN_RENDER, retain_mean2d=True)
         ldr = tonemap(raster.rgb, shot.exposure, self.dataset.gamma)
         loss, _ = photo_loss(ldr, photo, use_exp=self.config.variant != "no-exp",

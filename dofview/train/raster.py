@@ -13,14 +13,18 @@ box reaches the tile, so cost ~ pixels × Gaussians per tile. Meant for small tr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import torch
 
 from dofview.camera import Camera
 from dofview.frame import RenderSettings
-from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, normalise_opacity
+from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, cut_splat, normalise_opacity
 
 TILE = 16
+# lens.py's array namespace for torch: its minimum/maximum take a Python float where numpy's do
+XP = SimpleNamespace(minimum=lambda a, b: torch.clamp(a, max=b), maximum=lambda a, b: torch.clamp(a, min=b),
+                     log=torch.log, log1p=torch.log1p, exp=torch.exp, full_like=torch.full_like)
 
 
 @dataclass
@@ -50,15 +54,37 @@ def rotations(quats: torch.Tensor) -> torch.Tensor:
     ], dim=1).reshape(-1, 3, 3)
 
 
-def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
-              colours: torch.Tensor, camera: Camera, lens: Lens,
-              settings: RenderSettings = RenderSettings(), retain_mean2d: bool = False) -> Raster:
-    """Render Gaussians (activated parameters, world space) for ``camera`` through ``lens``.
+@dataclass
+class Splats:
+    """The drawn Gaussians of one view, projected, in front-to-back order (differentiable).
+
+    Attributes:
+        mean2d: (M, 2) pixel positions. conic: (M, 3) (a, b, c) of Σ′⁻¹ = [[a, b], [b, c]], px⁻².
+        opacity: (M,) normalised opacity o′. colour: (M, 3) the colours given, of these Gaussians.
+        support: (M,) no-grad bound r2 on dᵀΣ′⁻¹d where α ≥ τ can hold (≤ 9: 3σ).
+        lo, hi: (M, 2) no-grad corners of the support box, pixels (CoC-enlarged).
+        drawn: (M,) int64 indices into the input arrays.
+    """
+
+    mean2d: torch.Tensor
+    conic: torch.Tensor
+    opacity: torch.Tensor
+    colour: torch.Tensor
+    support: torch.Tensor
+    lo: torch.Tensor
+    hi: torch.Tensor
+    drawn: torch.Tensor
+
+
+def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
+            colours: torch.Tensor, camera: Camera, lens: Lens,
+            settings: RenderSettings = RenderSettings()) -> Splats:
+    """EWA-project Gaussians (activated parameters, world space) for ``camera`` through ``lens``:
+    the per-Gaussian half of :func:`rasterise`, shared by the dense and sparse compositors.
 
     Args:
         means: (N, 3) scene units. quats: (N, 4) (w, x, y, z). scales: (N, 3) scene units, > 0.
-        opacities: (N,) in [0, 1]. colours: (N, 3) linear (or display) values, any range.
-        retain_mean2d: keep the gradient of the projected means (for densification).
+        opacities: (N,) in [0, 1]. colours: (N, C) linear (or display) values, any range.
     """
     dev, dt = means.device, means.dtype
     R = torch.as_tensor(camera.R, dtype=dt, device=dev)
@@ -83,20 +109,36 @@ def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, op
     radius = coc(iz, lens.aperture, lens.inv_focus)
     sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
     o = normalise_opacity(opacities[front], beta, settings.opacity_norm, xp=torch)
-    tau = settings.tau
     with torch.no_grad():
-        keep = torch.isfinite(det) & (det > 0) & (o > 0) & (torch.clamp(o, max=ALPHA_MAX) >= tau)
-        sel = torch.nonzero(keep).squeeze(1)
+        kept, _, r2 = cut_splat(o, settings.tau, "drop", xp=XP)
+        sel = torch.nonzero(kept & torch.isfinite(det) & (det > 0)).squeeze(1)
     mean2d = torch.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], 1)[sel]
-    if retain_mean2d and mean2d.requires_grad:
-        mean2d.retain_grad()
-    sxx, sxy, syy, det, o = sxx[sel], sxy[sel], syy[sel], det[sel], o[sel]
-    colour = colours[front[sel]]
-    conic = torch.stack([syy / det, -sxy / det, sxx / det], 1)
+    sxx, sxy, syy, det = sxx[sel], sxy[sel], syy[sel], det[sel]
     with torch.no_grad():
-        r2 = torch.clamp(2.0 * torch.log(o / tau), max=9.0) if tau > 0 else torch.full_like(o, 9.0)  # ≤ 3σ, as quads.vert
-        ext = torch.sqrt(r2[:, None] * torch.stack([sxx, syy], 1))
-        lo, hi = mean2d - ext, mean2d + ext
+        r2 = r2[sel]
+        ext = torch.sqrt(r2[:, None] * torch.stack([sxx, syy], 1))  # ≤ 3σ, as quads.vert
+    return Splats(mean2d=mean2d, conic=torch.stack([syy / det, -sxy / det, sxx / det], 1), opacity=o[sel],
+                  colour=colours[front[sel]], support=r2, lo=mean2d.detach() - ext, hi=mean2d.detach() + ext,
+                  drawn=front[sel])
+
+
+def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
+              colours: torch.Tensor, camera: Camera, lens: Lens,
+              settings: RenderSettings = RenderSettings(), retain_mean2d: bool = False) -> Raster:
+    """Render Gaussians (activated parameters, world space) for ``camera`` through ``lens``,
+    compositing densely per tile (autograd through every pixel × Gaussian of a tile).
+
+    Args:
+        means: (N, 3) scene units. quats: (N, 4) (w, x, y, z). scales: (N, 3) scene units, > 0.
+        opacities: (N,) in [0, 1]. colours: (N, 3) linear (or display) values, any range.
+        retain_mean2d: keep the gradient of the projected means (for densification).
+    """
+    s = project(means, quats, scales, opacities, colours, camera, lens, settings)
+    if retain_mean2d and s.mean2d.requires_grad:
+        s.mean2d.retain_grad()
+    dev, dt = means.device, means.dtype
+    w, h, tau = camera.width, camera.height, settings.tau
+    mean2d, conic, o, colour, lo, hi = s.mean2d, s.conic, s.opacity, s.colour, s.lo, s.hi
     rgb = torch.zeros(h, w, 3, dtype=dt, device=dev)
     cover = torch.zeros(h, w, dtype=dt, device=dev)
     for y0 in range(0, h, TILE):
@@ -120,4 +162,4 @@ def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, op
             weight = alpha * trans
             rgb[y0:y1, x0:x1] = (weight @ colour[hit]).reshape(y1 - y0, x1 - x0, 3)
             cover[y0:y1, x0:x1] = (1.0 - torch.exp(log_t[:, -1])).reshape(y1 - y0, x1 - x0)
-    return Raster(rgb=rgb, alpha=cover, mean2d=mean2d, drawn=front[sel])
+    return Raster(rgb=rgb, alpha=cover, mean2d=mean2d, drawn=s.drawn)

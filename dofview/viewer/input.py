@@ -41,16 +41,12 @@ class _Window(Protocol):
     pixel_ratio: float
 
 
-class ViewerActions(Protocol):
-    """What the input handler may read and do: the viewer implements it; input never imports the
-    viewer."""
+class ModelActions(Protocol):
+    """What input may read and do in the viewer model (viewer/model.py's ViewerModel)."""
 
-    window: _Window
     controls: ViewControls
     settings: ViewerSettings
-    fly_mode: bool
     fly_speed: float
-    show_help: bool
 
     @property
     def image_size(self) -> tuple[int, int]: ...
@@ -59,12 +55,23 @@ class ViewerActions(Protocol):
     def reset_view(self) -> None: ...
     def cycle_up(self) -> None: ...
     def step_view(self, step: int) -> None: ...
+
+
+class ViewerActions(Protocol):
+    """What the input handler may read and do: the window's fields and actions, and its model's;
+    the viewer implements it, input never imports the viewer."""
+
+    window: _Window
+    model: ModelActions
+    fly_mode: bool
+    show_help: bool
+
     def save(self) -> None: ...
     def copy_command(self) -> None: ...
 
 
 def _over_image(viewer: ViewerActions, x: float, y: float) -> bool:
-    w, h = viewer.image_size
+    w, h = viewer.model.image_size
     r = viewer.window.pixel_ratio
     return 0 <= x * r < w and 0 <= y * r < h
 
@@ -75,7 +82,7 @@ def _fly_keys(viewer: ViewerActions, dt: float) -> None:
 
     right, down, forward = axis(imgui.Key.d, imgui.Key.a), axis(imgui.Key.q, imgui.Key.e), axis(imgui.Key.w, imgui.Key.s)
     fast = FLY_FAST if imgui.get_io().key_shift else 1.0
-    viewer.controls.fly(right, down, forward, viewer.fly_speed * fast * dt)
+    viewer.model.controls.fly(right, down, forward, viewer.model.fly_speed * fast * dt)
 
 
 class InputHandler:
@@ -99,9 +106,9 @@ class InputHandler:
             self.press, self.dragging = (x, y), False
         if io.mouse_wheel and self.press is None:
             if viewer.fly_mode:
-                viewer.fly_speed *= FLY_SPEED_STEP ** io.mouse_wheel
+                viewer.model.fly_speed *= FLY_SPEED_STEP ** io.mouse_wheel
             else:
-                viewer.controls.zoom(io.mouse_wheel)
+                viewer.model.controls.zoom(io.mouse_wheel)
         if self.press is None:
             return
         px, py = self.press
@@ -111,13 +118,13 @@ class InputHandler:
         dx, dy = io.mouse_delta.x, io.mouse_delta.y
         if self.dragging and (dx or dy):
             if pan_button or (left and io.key_shift):
-                viewer.controls.pan(dx * r, dy * r, viewer.camera().fx)
+                viewer.model.controls.pan(dx * r, dy * r, viewer.model.camera().fx)
             elif left and viewer.fly_mode:
-                viewer.controls.look(dx, dy)
+                viewer.model.controls.look(dx, dy)
             elif left:
-                viewer.controls.orbit(dx, dy)
+                viewer.model.controls.orbit(dx, dy)
         if imgui.is_mouse_released(0) and not self.dragging:
-            viewer.focus_at(px * r, py * r)
+            viewer.model.focus_at(px * r, py * r)
         if not (left or pan_button):
             self.press = None
 
@@ -134,17 +141,17 @@ def _keys(viewer: ViewerActions, io, x: float, y: float) -> None:
     if pressed(imgui.Key.tab, False):
         viewer.fly_mode = not viewer.fly_mode
     if pressed(imgui.Key.f, False) and _over_image(viewer, x, y):
-        viewer.focus_at(x * r, y * r)
+        viewer.model.focus_at(x * r, y * r)
     if pressed(imgui.Key.g, False):
-        viewer.settings.focus_aid = not viewer.settings.focus_aid
+        viewer.model.settings.focus_aid = not viewer.model.settings.focus_aid
     if pressed(imgui.Key.r, False):
-        viewer.reset_view()
+        viewer.model.reset_view()
     if pressed(imgui.Key.u, False):
-        viewer.cycle_up()
+        viewer.model.cycle_up()
     if pressed(imgui.Key.n, False) or pressed(imgui.Key.page_down, False):
-        viewer.step_view(1)
+        viewer.model.step_view(1)
     if pressed(imgui.Key.p, False) or pressed(imgui.Key.page_up, False):
-        viewer.step_view(-1)
+        viewer.model.step_view(-1)
     if io.key_ctrl and pressed(imgui.Key.s, False):
         viewer.save()
     if io.key_ctrl and pressed(imgui.Key.c, False):

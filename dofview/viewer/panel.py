@@ -1,25 +1,51 @@
 """The ImGui layer: the side panel (lens, image, camera, status, files), the help overlay and
-the loading bar. Widgets write straight into the viewer's settings; actions call its methods."""
+the loading bar. Widgets write straight into the viewer model's settings; actions call its methods
+(:class:`PanelHost`: the model's public attributes and the window's fields)."""
 
 from __future__ import annotations
 
 import math
 import shutil
+from collections import deque
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from imgui_bundle import imgui
 
 from dofview.frame import OPACITY_NORMS
 from dofview.io import READERS
-from dofview.rendering.progressive import SHOW_AFTER
 from dofview.scene import COLOUR_SPACES
 from dofview.viewer.input import HELP
 from dofview.viewer.settings import MAX_COC_PX
 
 if TYPE_CHECKING:
-    from dofview.viewer.viewer import Viewer
+    from dofview.viewer.model import ViewerModel
+
+
+class _Window(Protocol):
+    @property
+    def window_size(self) -> tuple[int, int]: ...
+
+
+class PanelHost(Protocol):
+    """What the panel reads and writes: the viewer model's public attributes and methods, and the
+    window's fields it edits (viewer.py's Viewer implements it; the panel never imports it)."""
+
+    model: ViewerModel
+    window: _Window
+    show_help: bool
+    fly_mode: bool
+    save_path: str
+    save_png: bool
+    open_path: str
+    dialog: object | None
+    frame_ms: deque[float]
+    panel_layout: dict[str, float | list[float]]
+
+    def save(self) -> None: ...
+    def copy_command(self) -> str: ...
+
 
 PANEL_WIDTH = 330  # window units; the image fills the rest of the window
 ERROR_COLOUR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
@@ -53,7 +79,7 @@ def _tip(text: str) -> None:
     imgui.set_item_tooltip(text)
 
 
-def _mark(v: "Viewer", name: str) -> None:
+def _mark(v: "PanelHost", name: str) -> None:
     """Remember where the last widget was drawn (window units) for the report: the tests check
     that the layout holds still and fits."""
     lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
@@ -70,16 +96,16 @@ def _note(text: str, colour: imgui.ImVec4 | None = None) -> None:
     imgui.pop_text_wrap_pos()
 
 
-def _lens(v: "Viewer") -> None:
-    s = v.settings
-    lo, hi = v.focus_range  # from the depths in view
+def _lens(v: "PanelHost") -> None:
+    s = v.model.settings
+    lo, hi = v.model.focus_range  # from the depths in view
     changed, focus = _log_slider("focus", s.focus, lo, hi)
     _mark(v, "focus")
     _tip("distance in focus, scene units (--focus); Ctrl+click to type")
     entered, typed = imgui.input_float("focus (type)", s.focus, 0.0, 0.0, "%.5g", imgui.InputTextFlags_.enter_returns_true)
     if changed or (entered and math.isfinite(typed) and typed > 0):
-        v.set_focus(focus if changed else typed, smooth=False)
-    _, s.dof = imgui.checkbox("depth of field", s.dof)
+        v.model.set_focus(focus if changed else typed, smooth=False)
+    _, s.dof_enabled = imgui.checkbox("depth of field", s.dof_enabled)
     imgui.same_line()
     _, s.physical = imgui.checkbox("physical lens", s.physical)
     if s.physical:
@@ -87,9 +113,9 @@ def _lens(v: "Viewer") -> None:
         _, s.focal_mm = _log_slider("focal length mm", s.focal_mm, 4.0, 800.0, "%.3g mm")
         _, s.sensor_mm = _log_slider("sensor width mm", s.sensor_mm, 2.0, 100.0, "%.3g mm")
         _, s.units_per_metre = _log_slider("units per metre", s.units_per_metre, 1e-3, 1e3)
-        imgui.text_disabled(f"aperture strength A = {v.lens().aperture:.4g}")
+        imgui.text_disabled(f"aperture strength A = {v.model.lens().aperture:.4g}")
     else:
-        top = max(v.aperture_for_blur(MAX_COC_PX), s.aperture)  # the largest blur in view reaches 30 px
+        top = max(v.model.aperture_for_blur(MAX_COC_PX), s.aperture)  # the largest blur in view reaches 30 px
         _, s.aperture = _log_slider("aperture A", s.aperture, 0.0, top)
         _tip("aperture strength A, px x scene unit (--aperture):\nblur radius R = A/2 * |1/z - 1/focus| px")
     _, s.smooth_focus = imgui.checkbox("smooth focus pull", s.smooth_focus)
@@ -99,9 +125,9 @@ def _lens(v: "Viewer") -> None:
     _tip("tint the sharp band: blur radius below one pixel (G)")
 
 
-def _splatting(v: "Viewer") -> None:
+def _splatting(v: "PanelHost") -> None:
     """How splats are cut and blurred: the renderer's settings, in user words (names in tooltips)."""
-    s = v.settings
+    s = v.model.settings
     rs = s.render
     changed_tau, tau = _slider("min. opacity", rs.tau * 255.0, 0.0, 16.0, "%.2f/255")
     _tip("tau, minimum alpha (--tau): contributions fainter than this are skipped\n"
@@ -124,8 +150,8 @@ def _splatting(v: "Viewer") -> None:
                            cut="conserve" if conserve else "drop")
 
 
-def _image(v: "Viewer") -> None:
-    s = v.settings
+def _image(v: "PanelHost") -> None:
+    s = v.model.settings
     _, s.ev = _slider("exposure EV", s.ev, -10.0, 10.0, "%+.2f")
     _, s.gamma = _slider("gamma", s.gamma, 0.5, 4.0, "%.2f")
     changed, cs = imgui.combo("colour space", COLOUR_SPACES.index(s.colour_space),
@@ -145,13 +171,13 @@ def _image(v: "Viewer") -> None:
     _tonemap(v)
 
 
-def _tonemap(v: "Viewer") -> None:
+def _tonemap(v: "PanelHost") -> None:
     """Operator combo box, its parameters as sliders, and the statistics lock."""
     from dataclasses import fields
 
     from dofview.tonemap import OPERATORS
 
-    s = v.settings
+    s = v.model.settings
     names = list(OPERATORS)
     changed, i = imgui.combo("tone mapping", names.index(s.tonemap_operator), names)
     if changed:
@@ -168,49 +194,48 @@ def _tonemap(v: "Viewer") -> None:
             s.tonemap_params = {**s.tonemap_params, f.name: new}
     if op.adaptive:
         _, s.stats_lock = imgui.checkbox("lock adaptation", s.stats_lock)
-        st = v.smoother.state
+        st = v.model.smoother.state
         if st is not None:
             imgui.text_disabled(f"key 2^{st.key:+.2f}, 1-99%: 2^{st.lo:+.2f}..2^{st.hi:+.2f}")
 
 
-def _camera(v: "Viewer") -> None:
+def _camera(v: "PanelHost") -> None:
     if imgui.button("reset (R)"):
-        v.reset_view()
+        v.model.reset_view()
     imgui.same_line()
     _, v.fly_mode = imgui.checkbox("fly mode (Tab)", v.fly_mode)
-    if v.cameras:
+    if v.model.cameras:
         if imgui.button("< prev"):
-            v.step_view(-1)
+            v.model.step_view(-1)
         imgui.same_line()
         if imgui.button("next >"):
-            v.step_view(1)
+            v.model.step_view(1)
         imgui.same_line()
-        names = [c.name or str(i) for i, c in enumerate(v.cameras)]
-        idx = v.view_index if v.view_index is not None else -1
+        names = [c.name or str(i) for i, c in enumerate(v.model.cameras)]
+        idx = v.model.view_index if v.model.view_index is not None else -1
         imgui.set_next_item_width(-1)
         changed, idx = imgui.combo("##view", idx, names)
         if changed:
-            v.set_view(idx)
+            v.model.set_view(idx)
     else:
         imgui.text_disabled("no cameras.json (--cameras or drop one)")
 
 
-def _status(v: "Viewer") -> None:
+def _status(v: "PanelHost") -> None:
     """A fixed number of lines whatever the state, so the widgets below never move."""
-    st = v.renderer.stats
+    st = v.model.renderer.stats
     ft = np.array(v.frame_ms or [0.0], np.float32)
-    imgui.text(f"frame {ft[-1]:.1f} ms  splat {v.render_ms:.1f} ms  sort {st.sort_ms:.1f} ms")
+    imgui.text(f"frame {ft[-1]:.1f} ms  splat {v.model.render_ms:.1f} ms  sort {st.sort_ms:.1f} ms")
     imgui.plot_lines("##frametimes", ft, overlay_text=f"max {ft.max():.0f} ms", scale_min=0.0,
                      graph_size=imgui.ImVec2(-1, 40))
     imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")
-    n = v.progressive.samples
-    imgui.text(f"thin lens: {n} samples" + ("" if n >= SHOW_AFTER else " (single pass shown)") if n
-               else "thin lens: single pass")
-    cam = v.camera()
-    imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.scene_path.name}")
+    n = v.model.progressive.samples
+    imgui.text(f"thin lens: {n} sub-aperture passes" if n > 1 else "thin lens: single pass")
+    cam = v.model.camera()
+    imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.model.scene_path.name}")
 
 
-def _files(v: "Viewer") -> None:
+def _files(v: "PanelHost") -> None:
     imgui.set_next_item_width(-70)
     _, v.save_path = imgui.input_text("##save", v.save_path)
     imgui.same_line()
@@ -226,37 +251,37 @@ def _files(v: "Viewer") -> None:
                                                       imgui.InputTextFlags_.enter_returns_true)
     imgui.same_line()
     if (imgui.button("open") or entered) and v.open_path:
-        v.open_file(v.open_path)
+        v.model.open_file(v.open_path)
     if any(shutil.which(p) for p in DIALOG_PROGRAMS):  # without one, paths are typed or dropped
         if imgui.button("browse...") and v.dialog is None:
             from imgui_bundle import portable_file_dialogs as pfd
 
-            v.dialog = pfd.open_file("Open a scene", str(v.scene_path.parent),
+            v.dialog = pfd.open_file("Open a scene", str(v.model.scene_path.parent),
                                      ["Scenes", " ".join("*" + e for e in READERS), "Cameras", "*.json"])
     if v.dialog is not None and v.dialog.ready(0):
         chosen = v.dialog.result()
         v.dialog = None
         if chosen:
-            v.open_file(chosen[0])
+            v.model.open_file(chosen[0])
 
 
-def _messages(v: "Viewer") -> None:
+def _messages(v: "PanelHost") -> None:
     """Loading bar, error or message in an area of :data:`MESSAGE_LINES` lines: a longer text is
     cut there (whole in its tooltip), a shorter one leaves the rest empty."""
     size = imgui.ImVec2(0, MESSAGE_LINES * imgui.get_text_line_height_with_spacing())
     imgui.begin_child("##messages", size, 0, imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_nav_inputs)
-    if v.loading is not None:
-        imgui.text(f"loading {v.loading.path.name} ({v.loading.elapsed:.1f} s)")
-        imgui.progress_bar(v.loading.fraction)
-    text = v.error or v.message
+    if v.model.loading is not None:
+        imgui.text(f"loading {v.model.loading.path.name} ({v.model.loading.elapsed:.1f} s)")
+        imgui.progress_bar(v.model.loading.fraction)
+    text = v.model.error or v.model.message
     if text:
-        _note(text, ERROR_COLOUR if v.error else None)
+        _note(text, ERROR_COLOUR if v.model.error else None)
     imgui.end_child()
     if text:
         _tip(text)
 
 
-def _help(v: "Viewer") -> None:
+def _help(v: "PanelHost") -> None:
     imgui.set_next_window_pos(imgui.ImVec2(12, 12), imgui.Cond_.always)
     imgui.set_next_window_bg_alpha(0.9)
     expanded, still_open = imgui.begin("Help (F1 / H)", True, imgui.WindowFlags_.always_auto_resize | _FIXED)
@@ -272,7 +297,7 @@ def _help(v: "Viewer") -> None:
     v.show_help = bool(still_open)
 
 
-def draw_ui(v: "Viewer") -> None:
+def draw_ui(v: "PanelHost") -> None:
     """The whole ImGui layer for this frame."""
     w, h = v.window.window_size
     imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0), imgui.Cond_.always)

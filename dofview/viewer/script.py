@@ -109,7 +109,7 @@ class ScriptRunner:
         now = time.perf_counter()
         if self._settle_since is None:
             self._settle_since = now
-        if viewer.settled:
+        if viewer.model.settled:
             self._settle_since = None
             return True
         if now - self._settle_since > SETTLE_TIMEOUT_S:
@@ -121,33 +121,33 @@ class ScriptRunner:
         if do == "set":
             render = {k: a[k] for k in a if k in _RENDER}
             if render:
-                v.with_render(**render)
+                v.model.with_render(**render)
             for k in a:
                 if k in _SETTINGS and k != "focus":
                     value = a[k]
-                    setattr(v.settings, k, tuple(value) if isinstance(value, list) else value)
+                    setattr(v.model.settings, k, tuple(value) if isinstance(value, list) else value)
             if "focus" in a:
-                v.set_focus(float(a["focus"]), smooth=bool(a.get("smooth", False)))
+                v.model.set_focus(float(a["focus"]), smooth=bool(a.get("smooth", False)))
         elif do == "click":
-            v.focus_at(float(a["x"]), float(a["y"]))
+            v.model.focus_at(float(a["x"]), float(a["y"]))
         elif do in ("orbit", "look"):
-            getattr(v.controls, do)(float(a["dx"]), float(a["dy"]))
+            getattr(v.model.controls, do)(float(a["dx"]), float(a["dy"]))
         elif do == "pan":
-            v.controls.pan(float(a["dx"]), float(a["dy"]), v.camera().fx)
+            v.model.controls.pan(float(a["dx"]), float(a["dy"]), v.model.camera().fx)
         elif do == "zoom":
-            v.controls.zoom(float(a["steps"]))
+            v.model.controls.zoom(float(a["steps"]))
         elif do == "view":
-            names = [c.name for c in v.cameras]
-            v.set_view(names.index(a["name"]) if "name" in a else int(a["index"]))
+            names = [c.name for c in v.model.cameras]
+            v.model.set_view(names.index(a["name"]) if "name" in a else int(a["index"]))
         elif do == "next":
-            v.step_view(1)
+            v.model.step_view(1)
         elif do == "reset":
-            v.reset_view()
+            v.model.reset_view()
         elif do == "open":
             if not self._opening:
-                v.open_file(a["path"])
+                v.model.open_file(a["path"])
                 self._opening = True
-            if v.loading is not None:
+            if v.model.loading is not None:
                 return False
             self._opening = False
         elif do == "save":
@@ -172,7 +172,7 @@ class ScriptRunner:
         elif do == "settle":
             return self._settled(v)
         elif do == "still":
-            if v.progressive.samples >= int(a["samples"]):
+            if v.model.progressive.samples >= int(a["samples"]):
                 self._settle_since = None
                 return True
             now = time.perf_counter()

@@ -7,12 +7,12 @@ same one the headless renderer gets, and can be tested without a display.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from dofview.camera import Camera
 from dofview.frame import RenderSettings
-from dofview.lens import Lens, PhysicalLens, exposure_from_shutter
-from dofview.tonemap import Tonemap
+from dofview.lens import Lens, LensRequest, shutter_ev
+from dofview.tonemap import OPERATORS, Operator, Tonemap, operator_from_dict
 
 FOCUS_PULL_S = 0.15  # duration of a smooth focus pull
 START_COC_PX = 0.5  # without --aperture the first frame blurs nothing by a pixel: sharp, yet the slider is live
@@ -33,7 +33,7 @@ class ViewerSettings:
 
     focus: float = 1.0
     aperture: float = 0.0
-    dof: bool = True
+    dof_enabled: bool = True  # the panel's depth-of-field switch (off: a pinhole)
     physical: bool = False
     focal_mm: float = 50.0
     fnumber: float = 2.8
@@ -51,43 +51,41 @@ class ViewerSettings:
     colour_space: str = "srgb"
     focus_aid: bool = False
     smooth_focus: bool = True
-    lens_samples_max: int = 256  # pinhole passes the thin lens is refined with while still (0: off)
+    lens_samples_max: int = 256  # passes of the last stage the thin lens is refined to while still (0: off)
     render: RenderSettings = field(default_factory=RenderSettings)
 
-    def physical_lens(self) -> PhysicalLens:
-        return PhysicalLens(self.focal_mm, self.fnumber, self.sensor_mm, self.units_per_metre)
+    def lens_request(self) -> LensRequest:
+        """The panel's lens as a request: the physical lens when on, else the strength A as drawn."""
+        if self.physical:
+            return LensRequest(fnumber=self.fnumber, focal_mm=self.focal_mm, sensor_mm=self.sensor_mm,
+                               units_per_metre=self.units_per_metre)
+        return LensRequest(aperture=self.aperture, sensor_mm=self.sensor_mm, units_per_metre=self.units_per_metre)
 
     def lens(self, camera: Camera) -> Lens:
         """The lens for ``camera`` (its f_x turns a physical lens into an aperture strength)."""
-        if not self.dof:
+        if not self.dof_enabled:
             return Lens(self.focus, 0.0)
-        if self.physical:
-            f = self.physical_lens().focal_units
+        request = self.lens_request()
+        if request.physical is not None:
             # a physical lens cannot focus inside its focal length: hold the focus just beyond it
-            return self.physical_lens().lens(camera.fx, max(self.focus, f * 1.001))
-        return Lens(self.focus, self.aperture)
+            return request.lens(camera, max(self.focus, request.physical.focal_units * 1.001))
+        return Lens(self.focus, self.aperture)  # A as drawn, whatever the camera's reference width
 
     def tonemap(self) -> Tonemap:
         ev = self.ev
         if self.exposure_follows_aperture and self.physical:
-            ev += math.log2(exposure_from_shutter(self.shutter_s, self.fnumber))
+            ev += shutter_ev(self.shutter_s, self.fnumber)
         return Tonemap(exposure=ev, gamma=self.gamma, background=self.background, operator=self.operator())
 
-    def operator(self):
+    def operator(self) -> Operator:
         """The tone-mapping operator with the panel's parameters (those it does not have are dropped)."""
-        from dataclasses import fields
+        names = {f.name for f in fields(OPERATORS[self.tonemap_operator])}
+        return operator_from_dict({"operator": self.tonemap_operator,
+                                   **{k: v for k, v in self.tonemap_params.items() if k in names}})
 
-        from dofview.tonemap import OPERATORS
-
-        cls = OPERATORS[self.tonemap_operator]
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in self.tonemap_params.items() if k in names})
-
-    def lens_info(self) -> dict[str, float | None]:
-        """The physical-lens values written into a saved EXR's header (None when A is given directly)."""
-        return {"fnumber": self.fnumber if self.physical else None,
-                "focal_mm": self.focal_mm if self.physical else None,
-                "sensor_mm": self.sensor_mm, "units_per_metre": self.units_per_metre}
+    def lens_info(self) -> dict[str, object]:
+        """What a saved EXR's header records of the lens besides the strength (LensRequest.to_dict)."""
+        return self.lens_request().to_dict()
 
 
 class FocusPull:

@@ -2,7 +2,7 @@
 // One step of the progressive thin lens (rendering/progressive.py): copy a pair of float targets
 // (colour, depth sums) scaled by u_scale, the colour first decoded from the display encoding
 // (max(c, 0)^2.2, as tonemap.decode) when u_decode is set. Drawn with additive blending it adds a
-// pinhole pass to the accumulation in linear light; without, it saves or resolves an image.
+// pass to the accumulation in linear light; without, it saves or resolves an image.
 
 in vec2 v_uv;
 

@@ -14,6 +14,7 @@ layout(std430, binding = 4) buffer Counter { uint drawn; };
 #include "project.glsl"
 
 uniform bool u_count;
+uniform uint u_first;  // the first instance's place in the order (a depth slice's range)
 
 // The fragment measures its offset from gl_FragCoord (exact pixel centres) rather than from an
 // interpolated varying, which would inherit the rasteriser's snapping of quad corners.
@@ -38,7 +39,7 @@ void cull() {
 
 void main() {
     Footprint f;
-    if (!project_gaussian(order[gl_InstanceID], f)) { cull(); return; }
+    if (!project_gaussian(order[u_first + uint(gl_InstanceID)], f)) { cull(); return; }
     vec2 e1;
     float l1, l2;
     footprint_axes(f.sxx, f.sxy, f.syy, f.det, e1, l1, l2);

@@ -24,6 +24,7 @@ from dofview.errors import DofviewError
 from dofview.lens import exposure_from_ev
 from dofview.tonemap.clip import Clip
 from dofview.tonemap.operator import Operator
+from dofview.tonemap.registry import AUTO, default_operator, operator_from_dict
 from dofview.tonemap.stats import Stats
 
 SCENE_ENCODING_GAMMA = 2.2  # the transfer of the photos a standard 3DGS scene was fit to
@@ -60,6 +61,34 @@ class Tonemap:
     def multiplier(self) -> float:
         """The linear factor 2^exposure that scales the light (Eq. 7's exposure)."""
         return exposure_from_ev(self.exposure)
+
+    def to_dict(self) -> dict[str, object]:
+        """The display settings as plain data: exposure (EV), gamma, background (list of 3) and
+        ``tonemap``, the operator as the EXR header's ``dofview:tonemap`` records it:
+        ``{"operator": name, param: value, …}``."""
+        return {"exposure": self.exposure, "gamma": self.gamma, "background": list(self.background),
+                "tonemap": {"operator": self.operator.name, **self.operator.params()}}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object], colour_space: str = "srgb") -> "Tonemap":
+        """The settings of :meth:`to_dict`; missing entries take their defaults, and the operator
+        ``auto`` (or none) is the default operator of ``colour_space``, as ``--tonemap auto``."""
+        background = tuple(float(c) for c in d.get("background", (0.0, 0.0, 0.0)))  # type: ignore[union-attr]
+        return cls(exposure=float(d.get("exposure", 0.0)), gamma=float(d.get("gamma", 2.2)),  # type: ignore[arg-type]
+                   background=background,  # type: ignore[arg-type]
+                   operator=operator_from_dict(d.get("tonemap", {"operator": AUTO}), colour_space))  # type: ignore[arg-type]
+
+    def to_args(self, colour_space: str = "srgb") -> list[str]:
+        """``dofview render`` arguments that give these settings on a scene in ``colour_space``:
+        --exposure, --gamma, --background when not black, and --tonemap with every parameter
+        unless the operator is ``auto``'s choice for that colour space with no parameters."""
+        args = ["--exposure", repr(float(self.exposure)), "--gamma", repr(float(self.gamma))]
+        if any(self.background):
+            args += ["--background", ",".join(repr(float(c)) for c in self.background)]
+        op, params = self.operator.name, self.operator.params()
+        if op != default_operator(colour_space) or params:
+            args += ["--tonemap", op, *(f"--{op}-{k.replace('_', '-')}={v!r}" for k, v in params.items())]
+        return args
 
 
 def decode(c: np.ndarray) -> np.ndarray:

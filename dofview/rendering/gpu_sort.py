@@ -3,7 +3,7 @@ shaders: the order stays on the GPU. glsl/scan_*.comp and glsl/sort_*.comp hold 
 
 One radix pass per 8-bit digit: a per-block histogram (blocks of :data:`BLOCK` keys), one
 exclusive scan of all histograms (digit-major, so it yields each (digit, block)'s first slot),
-and a stable scatter. The numpy sort (rendering/sort.py) is the fallback and the test oracle.
+and a stable scatter. The numpy sort (rendering/depth_order.py) is the fallback and the test oracle.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import moderngl
 import numpy as np
 
 from dofview.errors import BackendUnavailable, DofviewError
-from dofview.rendering.gl import load_shader
+from dofview.rendering.gl import compute_shader
 
 THREADS = 64  # scatter/histogram workgroup; a multiple of 4 (byte counters four to a word)
 ITEMS = 32    # keys per thread; ≤ 63 so that four threads' byte counters never carry
@@ -41,23 +41,14 @@ def max_buffer_bytes(ctx: moderngl.Context) -> int:
     return int(ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
 
 
-def _program(ctx: moderngl.Context, name: str, defines: dict[str, object] | None = None) -> moderngl.ComputeShader:
-    try:
-        return ctx.compute_shader(load_shader(name, defines))
-    except moderngl.Error as e:  # a GL without compute shaders, or a driver limit the kernel exceeds
-        lines = [line.strip() for line in str(e).splitlines() if line.strip()] or ["unknown error"]
-        why = next((line for line in lines if "error" in line.lower() and line != lines[0]), lines[0])
-        raise BackendUnavailable(f"this OpenGL cannot compile {name}: {why}") from None
-
-
 class GpuScan:
     """In-place exclusive prefix sum of a uint32 storage buffer (multi-level, any length)."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         require_compute(ctx)
         self.ctx = ctx
-        self._block = _program(ctx, "scan_block.comp")
-        self._add = _program(ctx, "scan_add.comp")
+        self._block = compute_shader(ctx, "scan_block.comp")
+        self._add = compute_shader(ctx, "scan_add.comp")
         self._levels: list[moderngl.Buffer] = []
 
     def _level(self, i: int, count: int) -> moderngl.Buffer:
@@ -105,8 +96,8 @@ class GpuRadixSort:
         require_compute(ctx)
         self.ctx = ctx
         defines = {"THREADS": f"{THREADS}u", "ITEMS": f"{ITEMS}u"}
-        self._hist = _program(ctx, "sort_histogram.comp", defines)
-        self._scatter = _program(ctx, "sort_scatter.comp", defines)
+        self._hist = compute_shader(ctx, "sort_histogram.comp", defines)
+        self._scatter = compute_shader(ctx, "sort_scatter.comp", defines)
         self.scan = GpuScan(ctx)
         self._offsets: moderngl.Buffer | None = None
 

@@ -1,8 +1,9 @@
 """Depth sorting off the UI thread.
 
-The UI asks for the order of a view with :meth:`SortThread.request` whenever the camera moves and
-keeps drawing with the last order it has; :meth:`SortThread.result` hands over the newest finished
-order, which the UI thread uploads with ``Renderer.set_order`` (GL calls stay on that thread).
+The quad backend's :meth:`~dofview.rendering.quad.QuadBackend.request_order` asks for the order of
+a view with :meth:`SortThread.request` whenever the camera moves and keeps drawing with the last
+order it has; :meth:`SortThread.result` hands over the newest finished order, which the backend
+uploads on the calling (UI) thread, where GL calls stay. One thread per backend, so per scene.
 Requests that arrive while a sort runs replace each other: only the latest view is sorted next.
 """
 
@@ -15,35 +16,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from dofview.camera import Camera
-from dofview.rendering.sort import front_to_back
+from dofview.rendering.depth_order import front_to_back
 
 
 @dataclass
 class SortResult:
-    """A finished sort: ``order`` (N,) uint32 back to front, for ``view_key`` of scene ``generation``."""
+    """A finished sort: ``order`` (N,) uint32 back to front, for ``view_key``, taking ``ms``."""
 
     order: np.ndarray
     view_key: bytes
-    generation: int
     ms: float
 
 
 class SortThread:
-    """One daemon worker that sorts the latest requested view of the current scene."""
+    """One daemon worker that sorts the latest requested view."""
 
     def __init__(self) -> None:
         self._cond = threading.Condition()
-        self._request: tuple[np.ndarray, Camera, int] | None = None
+        self._request: tuple[np.ndarray, Camera] | None = None
         self._result: SortResult | None = None
         self._busy = False
         self._stop = False
         self._thread = threading.Thread(target=self._run, name="dofview-sort", daemon=True)
         self._thread.start()
 
-    def request(self, means: np.ndarray, camera: Camera, generation: int) -> None:
-        """Sort ``means`` ((N, 3) float32) for ``camera``; ``generation`` names the scene."""
+    def request(self, means: np.ndarray, camera: Camera) -> None:
+        """Sort ``means`` ((N, 3) float32) for ``camera``."""
         with self._cond:
-            self._request = (means, camera, generation)
+            self._request = (means, camera)
             self._cond.notify()
 
     def result(self) -> SortResult | None:
@@ -71,11 +71,11 @@ class SortThread:
                     self._cond.wait()
                 if self._stop:
                     return
-                (means, camera, generation), self._request = self._request, None
+                (means, camera), self._request = self._request, None
                 self._busy = True
             t0 = time.perf_counter()
             order = front_to_back(means, camera)[::-1].copy()
-            res = SortResult(order, camera.view_key(), generation, (time.perf_counter() - t0) * 1e3)
+            res = SortResult(order, camera.view_key(), (time.perf_counter() - t0) * 1e3)
             with self._cond:
                 self._result = res
                 self._busy = False

@@ -1,0 +1,179 @@
+"""Progressive thin lens against the physical truth: stages of sub-aperture passes against the
+pinhole average they replaced (issue 23).
+
+For each real scene (one study view, study.py) and each largest blur in view (8 and 16 px,
+sliced_study.cases_for): the PSNR of the display image against the physical truth (the
+linear-light average of ``--samples`` pinhole images, variants.make_references) of
+- the anchors' single pass (energy normalisation, τ = 1/255, k = 1/9, 1/4, 1) — the best of them is
+  the figure to beat —,
+- the pinhole-average refinement (N pinhole passes at the R2 points progressive.disk_sequence, τ = 0),
+- the stage refinement (N passes of the sub-aperture A/√N at progressive.stage_points, default
+  settings: ``dofview render --lens-samples N``), and that with other lens points (spread, layout).
+
+    python -m dofview.bench.refinement --scenes DIR [--width 240] [--samples 64] [--only NAME]
+        [--plot docs/images/refinement.png] [--ghosts docs/images/refinement_ghosts.png]
+
+prints one tab-separated line per scene, case, method and N: PSNR, and PSNR over the best anchor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from dofview.bench.sliced_study import ANCHOR, SCENES, cases_for
+from dofview.bench.study import ANCHOR_KS, study_views
+from dofview.bench.variants import errors, make_references
+from dofview.frame import Frame, RenderSettings
+from dofview.lens import Lens
+from dofview.rendering import Renderer, get_backend
+from dofview.rendering.accumulate import accumulate
+from dofview.rendering.progressive import SPREAD, disk_sequence, pass_settings, render_lens_samples
+from dofview.tonemap import Tonemap
+from dofview.tonemap.display import display
+
+COUNTS = (2, 4, 8, 16)
+OTHER_POINTS = {"stages, spread 0.9": {"spread": 0.9}, "stages, sunflower points": {"layout": "sunflower"}}
+"""Lens points measured beside the default (CVT centroids at progressive.SPREAD), at N = 4 and 8."""
+GHOST_N = 4
+
+
+def pinhole_average(renderer: Renderer, camera, lens: Lens, n: int) -> Frame:
+    """The refinement this module's stages replaced: n pinhole passes at the R2 lens points."""
+    pin, st = Lens(lens.focus, 0.0), pass_settings(RenderSettings())
+    return accumulate(lambda c: renderer.render(c, pin, st), camera, lens, n, points=disk_sequence(n))
+
+
+def study_case(renderer: Renderer, camera, lens: Lens, samples: int,
+               tm: Tonemap = Tonemap()) -> tuple[list[tuple[str, int, float]], dict[str, Frame]]:
+    """(method, N, PSNR) rows of one case, and the frames of the ghost figure (truth, best anchor,
+    both refinements at :data:`GHOST_N`)."""
+    truth = make_references(renderer, camera, lens, RenderSettings(), samples, False, lambda: None).physical
+    rows, frames = [], {"truth": truth}
+    best = None
+    for name, k in ANCHOR_KS.items():
+        f = renderer.render(camera, lens, replace(ANCHOR, k=k))
+        p = errors(f, truth, tm, False)["psnr"]
+        rows.append((name, 1, p))
+        if best is None or p > best[1]:
+            best, frames["best anchor"] = (name, p), f
+    for n in COUNTS:
+        f_old = pinhole_average(renderer, camera, lens, n)
+        f_new = render_lens_samples(renderer, camera, lens, RenderSettings(), n)
+        rows.append(("pinhole average", n, errors(f_old, truth, tm, False)["psnr"]))
+        rows.append(("stages", n, errors(f_new, truth, tm, False)["psnr"]))
+        if n == GHOST_N:
+            frames["pinhole average"], frames["stages"] = f_old, f_new
+    for name, kw in OTHER_POINTS.items():
+        for n in (4, 8):
+            f = render_lens_samples(renderer, camera, lens, RenderSettings(), n, **kw)
+            rows.append((name, n, errors(f, truth, tm, False)["psnr"]))
+    return rows, frames
+
+
+def plot(path: Path, table: dict[tuple[str, str], list[tuple[str, int, float]]], title: str) -> None:
+    """PSNR against N per scene: both refinements for each blur, the best anchor as a level."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(s for s, _ in table))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.2 * len(scenes), 3.4), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        for (s, case), rows in table.items():
+            if s != scene:
+                continue
+            ls = "-" if case == "blur16" else "--"
+            best = max(p for m, _, p in rows if m in ANCHOR_KS)
+            ax.axhline(best, color="grey", ls=ls, lw=1, label=f"best single pass, {case}")
+            for method, colour in (("pinhole average", "tab:red"), ("stages", "tab:blue")):
+                pts = [(n, p) for m, n, p in rows if m == method]
+                ax.plot([n for n, _ in pts], [p for _, p in pts], ls, marker="o", ms=3, color=colour,
+                        label=f"{method}, {case}")
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(COUNTS, [str(n) for n in COUNTS])
+        ax.set_xlabel("N (passes)")
+        ax.set_title(scene, fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("PSNR against the thin lens (dB)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=6, fontsize=7, frameon=False)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def ghost_figure(path: Path, frames: dict[str, Frame], rows: list[tuple[str, int, float]], title: str,
+                 tm: Tonemap = Tonemap(), zoom: int = 2) -> None:
+    """Truth | best anchor | pinhole average | stages (N = GHOST_N), each labelled with its PSNR."""
+    from PIL import Image, ImageDraw
+
+    psnr = {m: p for m, n, p in rows if n == GHOST_N}
+    best = max((p, m) for m, n, p in rows if m in ANCHOR_KS)
+    labels = {"truth": "thin lens (truth)", "best anchor": f"single pass {best[1]}: {best[0]:.2f} dB",
+              "pinhole average": f"pinhole average N={GHOST_N}: {psnr['pinhole average']:.2f} dB",
+              "stages": f"stages N={GHOST_N}: {psnr['stages']:.2f} dB"}
+    panels = []
+    for key, label in labels.items():
+        f = frames[key]
+        img = Image.fromarray((np.clip(display(f.rgba, f.encoded, tm), 0, 1) * 255 + 0.5).astype(np.uint8))
+        img = img.resize((img.width * zoom, img.height * zoom), Image.NEAREST)
+        ImageDraw.Draw(img).text((4, 4), label, fill=(255, 255, 255))
+        panels.append(img)
+    w, h = panels[0].size
+    sheet = Image.new("RGB", (2 * w, 2 * h + 16), (0, 0, 0))
+    for i, p in enumerate(panels):
+        sheet.paste(p, ((i % 2) * w, 16 + (i // 2) * h))
+    ImageDraw.Draw(sheet).text((4, 2), title, fill=(255, 255, 255))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m dofview.bench.refinement", description=__doc__.split("\n")[0])
+    ap.add_argument("--scenes", type=Path, required=True, help="folder of the five real scenes")
+    ap.add_argument("--width", type=int, default=240)
+    ap.add_argument("--samples", type=int, default=64, help="pinhole passes of the truth")
+    ap.add_argument("--only", action="append", help="scene file name; repeatable")
+    ap.add_argument("--raster", default="quad")
+    ap.add_argument("--plot", type=Path, help="PNG of PSNR against N per scene")
+    ap.add_argument("--ghosts", type=Path, help=f"PNG of both refinements at N = {GHOST_N} (first scene, 16 px)")
+    args = ap.parse_args(argv)
+    from dofview.io import load_scene
+
+    names = args.only or list(SCENES)
+    h = args.width * 3 // 4
+    table: dict[tuple[str, str], list[tuple[str, int, float]]] = {}
+    for name in names:
+        scene = load_scene(args.scenes / name, progress=False)
+        cam = study_views(scene, 1, args.width, h)[0]
+        renderer = get_backend(args.raster, scene)
+        t0 = time.perf_counter()
+        try:
+            for label, lens in zip(("blur8", "blur16"), cases_for(renderer, cam)):
+                rows, frames = study_case(renderer, cam, lens, args.samples)
+                table[(name, label)] = rows
+                best = max(p for m, _, p in rows if m in ANCHOR_KS)
+                for method, n, p in rows:
+                    print(f"{name}\t{label}\t{method}\t{n}\t{p:.2f}\t{p - best:+.2f}", flush=True)
+                if args.ghosts and name == names[0] and label == "blur16":
+                    ghost_figure(args.ghosts, frames, rows, f"{name}, {label}, {args.width}x{h}, N = {GHOST_N}")
+        finally:
+            renderer.release()
+        print(f"# {name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    if args.plot:
+        plot(args.plot, table, f"progressive thin lens against the physical truth ({args.samples} pinhole passes), "
+                               f"{args.width}x{h}, spread {SPREAD:g}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
