@@ -34,11 +34,11 @@ SLICED = RenderSettings(dof="sliced")
 
 def timing(paths: list[Path], width: int, height: int, reps: int, limits: list[float]) -> None:
     """Median frame times of pinhole, per-splat and sliced draws (each reduced-resolution limit of
-    ``limits`` px), interleaved, as ratios to the pinhole's."""
+    ``limits`` px, and disjoint slices at the last one), interleaved, as ratios to the pinhole's."""
     from dofview.io import load_scene
 
     print("scene\tbackend\tcase\tlayers\tsplat/pinhole\t" + "\t".join(f"sliced ≤{m:g}px/pinhole" for m in limits)
-          + "\tpinhole ms")
+          + f"\tdisjoint ≤{limits[-1]:g}px/pinhole\tpinhole ms")
     for path in paths:
         scene = load_scene(path, progress=False)
         cam = study_views(scene, 1, width, height)[0]
@@ -48,13 +48,14 @@ def timing(paths: list[Path], width: int, height: int, reps: int, limits: list[f
                 blur16 = cases_for(r, cam, blurs=(16.0,))[0]
                 r.draw(cam, blur16, SLICED)  # makes the sliced mode
                 for label, lens in (("A=100", Lens(blur16.focus, 100.0)), ("blur16", blur16)):
-                    modes = {"pinhole": (Lens(lens.focus, 0.0), RenderSettings(), None), "splat": (lens, RenderSettings(), None),
-                             **{m: (lens, SLICED, m) for m in limits}}
+                    modes = {"pinhole": (Lens(lens.focus, 0.0), RenderSettings(), None, True),
+                             "splat": (lens, RenderSettings(), None, True), **{m: (lens, SLICED, m, True) for m in limits},
+                             "disjoint": (lens, SLICED, limits[-1], False)}
                     times: dict[object, list[float]] = {m: [] for m in modes}
                     for rep in range(reps + 1):
-                        for m, (ln, st, limit) in modes.items():
+                        for m, (ln, st, limit, share) in modes.items():
                             if limit is not None:
-                                r._sliced.max_full_radius = limit
+                                r._sliced.max_full_radius, r._sliced.share = limit, share
                             r.ctx.finish()
                             t0 = time.perf_counter()
                             r.draw(cam, ln, st)
@@ -63,7 +64,8 @@ def timing(paths: list[Path], width: int, height: int, reps: int, limits: list[f
                                 times[m].append(time.perf_counter() - t0)
                     med = {m: float(np.median(v)) for m, v in times.items()}
                     print(f"{scene.name}\t{backend}\t{label}\t{len(r._sliced.layers)}\t{med['splat'] / med['pinhole']:.2f}\t"
-                          + "\t".join(f"{med[m] / med['pinhole']:.2f}" for m in limits) + f"\t{med['pinhole'] * 1e3:.0f}",
+                          + "\t".join(f"{med[m] / med['pinhole']:.2f}" for m in limits)
+                          + f"\t{med['disjoint'] / med['pinhole']:.2f}\t{med['pinhole'] * 1e3:.0f}",
                           flush=True)
             finally:
                 r.release()

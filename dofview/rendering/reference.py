@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -28,38 +29,54 @@ from dofview.lens import (
     kernel_shape,
     normalise_opacity,
 )
-from dofview.rendering.sliced import COMPOSITE, SLICE_RULE, full_radius_limit
-from dofview.rendering.slices import assign_slices, signed_coc, sliced_image
+from dofview.rendering.sliced import COMPOSITE, full_radius_limit, plan_layers
+from dofview.rendering.slices import sliced_image, to_blend_space
 from dofview.scene import SH_C0, GaussianScene
 from dofview.tonemap import decode
 
+Array = TypeVar("Array")  # a numpy array or a torch tensor
 _C1 = 0.4886025119029199
 _C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
 _C3 = (-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154,
        -0.4570457994644658, 1.445305721320277, -0.5900435899266435)
 
 
+def sh_view_terms(sh: Array, d: Array) -> Array:
+    """Σ_j Y_j(d)·sh_j over SH degrees 1..3 (basis and signs of sh.glsl / the reference 3DGS code).
+
+    Plain arithmetic and slicing only, so numpy arrays and torch tensors both work (the trainer
+    evaluates its colours with this, differentiably).
+
+    Args:
+        sh: (M, K−1, C) coefficients, K = (degree + 1)² ∈ {4, 9, 16}; a degree is used whole.
+        d: (M, 3) unit view directions (eye → mean).
+    Returns:
+        (M, C) the view-dependent colour terms.
+    """
+    deg = {3: 1, 8: 2, 15: 3}[sh.shape[1]]
+    x, y, z = d[:, 0:1], d[:, 1:2], d[:, 2:3]
+    c = _C1 * (-y * sh[:, 0] + z * sh[:, 1] - x * sh[:, 2])
+    if deg > 1:
+        xx, yy, zz = x * x, y * y, z * z
+        c = c + (_C2[0] * x * y * sh[:, 3] + _C2[1] * y * z * sh[:, 4]
+                 + _C2[2] * (2 * zz - xx - yy) * sh[:, 5] + _C2[3] * x * z * sh[:, 6]
+                 + _C2[4] * (xx - yy) * sh[:, 7])
+    if deg > 2:
+        c = c + (_C3[0] * y * (3 * xx - yy) * sh[:, 8] + _C3[1] * x * y * z * sh[:, 9]
+                 + _C3[2] * y * (4 * zz - xx - yy) * sh[:, 10]
+                 + _C3[3] * z * (2 * zz - 3 * xx - 3 * yy) * sh[:, 11]
+                 + _C3[4] * x * (4 * zz - xx - yy) * sh[:, 12] + _C3[5] * z * (xx - yy) * sh[:, 13]
+                 + _C3[6] * x * (xx - 3 * yy) * sh[:, 14])
+    return c
+
+
 def sh_colour(scene: GaussianScene, eye: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """(M, 3) float64 colour max(SH(view dir) + 0.5, 0) of the Gaussians ``idx`` seen from ``eye``."""
     c = SH_C0 * scene.sh_dc[idx].astype(np.float64) + 0.5
-    deg = scene.sh_degree
-    if deg > 0:
-        sh = scene.sh_rest[idx].astype(np.float64)
+    if scene.sh_degree > 0:
         d = scene.means[idx].astype(np.float64) - eye
         d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
-        x, y, z = (d[:, i:i + 1] for i in range(3))
-        c = c + _C1 * (-y * sh[:, 0] + z * sh[:, 1] - x * sh[:, 2])
-        if deg > 1:
-            xx, yy, zz = x * x, y * y, z * z
-            c = c + (_C2[0] * x * y * sh[:, 3] + _C2[1] * y * z * sh[:, 4]
-                     + _C2[2] * (2 * zz - xx - yy) * sh[:, 5] + _C2[3] * x * z * sh[:, 6]
-                     + _C2[4] * (xx - yy) * sh[:, 7])
-        if deg > 2:
-            c = c + (_C3[0] * y * (3 * xx - yy) * sh[:, 8] + _C3[1] * x * y * z * sh[:, 9]
-                     + _C3[2] * y * (4 * zz - xx - yy) * sh[:, 10]
-                     + _C3[3] * z * (2 * zz - 3 * xx - 3 * yy) * sh[:, 11]
-                     + _C3[4] * x * (4 * zz - xx - yy) * sh[:, 12] + _C3[5] * z * (xx - yy) * sh[:, 13]
-                     + _C3[6] * x * (xx - 3 * yy) * sh[:, 14])
+        c = c + sh_view_terms(scene.sh_rest[idx].astype(np.float64), d)
     return np.maximum(c, 0.0)
 
 
@@ -179,30 +196,40 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
 
 def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
                             settings: RenderSettings = RenderSettings(dof="sliced"), tile: int = 16,
-                            composite: str = COMPOSITE) -> Frame:
-    """The sliced mode (rendering/sliced.py) on the CPU: each slice of slices.py's rule, taken from
-    this reference's own float64 depths, rendered by :func:`render_reference` as a pinhole (τ = 0)
-    sub-scene, the huge-CoC front and back layers with the lens and ``settings``, then blurred and
-    composited by slices.sliced_image (``composite``: its mode, default the GL path's). Depth: each layer's under the pinhole transmittance of the
-    layers in front, as the GL path composites it."""
+                            composite: str = COMPOSITE, share: bool = True) -> Frame:
+    """The sliced mode (rendering/sliced.py) on the CPU: each layer of sliced.plan_layers
+    (``share``: neighbour sharing, as the GL path; else disjoint slices), taken from this
+    reference's own float64 depth order, rendered by :func:`render_reference` as a pinhole (τ = 0)
+    sub-scene, the huge-CoC front and back layers with the lens and ``settings``; a shared layer's
+    split τ is its blend with each splat's share as a grey colour over its coverage (in the blend
+    space). Blurred and composited by slices.sliced_image (``composite``: its mode, default the GL
+    path's). Depth: each layer's under the pinhole transmittance of the layers in front, as the GL
+    path composites it."""
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
-    live = np.nonzero(z > settings.near)[0]
-    slicing = assign_slices(signed_coc(z[live], lens), SLICE_RULE)
+    order = np.argsort(z, kind="stable")
+    plan, t = plan_layers(z[order], lens, settings.near, share=share)
     per_splat, pinhole = replace(settings, dof="splat"), replace(settings, tau=0.0, dof="splat")
-    layers, radii = [], []
-    for v in range(-1, slicing.count + 1):
-        members = live[slicing.index == v]
-        if members.size:
-            huge = v in (-1, slicing.count)
-            layers.append(render_reference(scene.subset(members), camera, lens if huge else Lens(lens.focus, 0.0),
-                                           per_splat if huge else pinhole, tile))
-            radii.append(0.0 if huge else float(slicing.radius[v]))
     encoded = scene.colour_space == "srgb" and not settings.blend_linear
+    layers, radii, splits = [], [], []
+    for layer in plan:
+        members = order[layer.first:layer.end]
+        sub = scene.subset(members)
+        layers.append(render_reference(sub, camera, lens if layer.lensed else Lens(lens.focus, 0.0),
+                                       per_splat if layer.lensed else pinhole, tile))
+        radii.append(layer.radius)
+        split = None
+        if layer.back_radius is not None:
+            dc = np.repeat(((t[layer.first:layer.end] - 0.5) / SH_C0)[:, None], 3, 1).astype(np.float32)
+            grey = render_reference(replace(sub, sh_dc=dc, sh_rest=None), camera,
+                                    Lens(lens.focus, 0.0), pinhole, tile)
+            weight, alpha = to_blend_space(grey.rgba, encoded)[..., 0], layers[-1].alpha
+            split = (np.where(alpha > 0, np.clip(weight / np.maximum(alpha, 1e-12), 0, 1), 0.0), layer.back_radius)
+        splits.append(split)
     if not layers:
         return render_reference(scene, camera, lens, per_splat, tile)
     rgba = sliced_image([f.rgba for f in layers], radii, encoded, blades=settings.blades,
                         rotation=math.radians(settings.blade_rotation),
-                        max_full_radius=full_radius_limit(settings.blades), mode=composite)
+                        max_full_radius=full_radius_limit(settings.blades), mode=composite, splits=splits)
     trans, zsum = np.ones(rgba.shape[:2]), np.zeros(rgba.shape[:2])
     for f in layers:
         zsum += trans * f.alpha * f.depth

@@ -33,6 +33,9 @@ def add_parser(sub) -> None:
     p.add_argument("--variant", choices=("full", "no-exp", "no-foc", "ldr"), default="full",
                    help="full model, ablations without L_exp / L_foc, or a plain LDR fit (default full)")
     p.add_argument("--seed", type=number(0, None, integer=True, what="seed"), default=0)
+    p.add_argument("--sh-degree", type=int, choices=(0, 1, 2, 3), default=0,
+                   help="view-dependent colour: SH degree, bands added progressively (default 0: one radiance "
+                        "per Gaussian, the fastest; docs/TRAINING.md)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     p.add_argument("--torch-raster", choices=("sparse", "dense"), default="sparse",
                    help="the differentiable torch rasteriser the fit runs on (not a GL backend: --raster names "
@@ -104,7 +107,8 @@ def run_train(args: argparse.Namespace) -> int:
         raise DofviewError(f"{args.output}: output must be a .ply file")
     dataset = load_dataset(args.dataset)
     config = TrainConfig(iterations=args.iterations, warmup=min(args.warmup, args.iterations), initial=args.gaussians,
-                         max_gaussians=args.max_gaussians, variant=args.variant, seed=args.seed)
+                         max_gaussians=args.max_gaussians, variant=args.variant, seed=args.seed,
+                         sh_degree=args.sh_degree)
     trainer = Trainer(dataset, config, args.device, args.torch_raster)
     ckpt = args.checkpoint or args.output.with_suffix(".ckpt")
     if args.resume:

@@ -1,7 +1,10 @@
 """The trainable HDR Gaussian scene: raw parameters, their activations, initialisation, export.
 
-Colours are view-independent (SH degree 0) and stored as logarithms, so radiance is positive and
-unbounded above (a lamp 1000× brighter than a wall is as easy to represent as the wall).
+The base colour c (the SH degree-0 term) is stored as a logarithm, so radiance is positive and
+unbounded above (a lamp 1000× brighter than a wall is as easy to represent as the wall). View
+dependence (SH degrees 1..3, ``sh_rest``) is stored relative to c: the colour seen along d is
+c·max(1 + Σ Y_j(d)·r_j, 0) — exactly a standard file's max(SH_C0·f_dc + 0.5 + Σ Y_j·f_rest_j, 0)
+with f_rest = c·r, so the export is exact, and one learning rate fits a wall and a lamp alike.
 Opacity is a logit, scales are logs, rotations unnormalised quaternions — as in 3DGS.
 """
 
@@ -15,7 +18,7 @@ import torch
 from dofview.scene import SH_C0, ColourSpace, GaussianScene
 from dofview.train.dataset import Dataset
 
-PARAMS = ("means", "log_scales", "quats", "opacity_logits", "log_colours")
+PARAMS = ("means", "log_scales", "quats", "opacity_logits", "log_colours", "sh_rest")
 MIN_COLOUR = 1e-4  # a floor for the log of an initial colour (black pixels)
 
 
@@ -23,11 +26,25 @@ class GaussianModel:
     """Raw parameters as leaf tensors in :attr:`params` (name → (N, …) float32 tensor)."""
 
     def __init__(self, params: dict[str, torch.Tensor]) -> None:
+        params = dict(params)
+        if "sh_rest" not in params:  # a degree-0 model (and checkpoints from before SH)
+            params["sh_rest"] = params["means"].new_zeros(len(params["means"]), 0, 3)
         self.params = {k: params[k].detach().clone().requires_grad_(True) for k in PARAMS}
 
     @property
     def count(self) -> int:
         return int(self.params["means"].shape[0])
+
+    @property
+    def sh_degree(self) -> int:
+        """The SH degree the model stores (0..3)."""
+        return {0: 0, 3: 1, 8: 2, 15: 3}[int(self.params["sh_rest"].shape[1])]
+
+    def view_sh(self, colours: torch.Tensor, degree: int) -> torch.Tensor | None:
+        """(N, (degree+1)² − 1, 3) absolute SH coefficients c·r of degrees 1..``degree`` (the active
+        bands: the others get no gradient), or None at degree 0; ``colours`` (N, 3) from :meth:`activated`."""
+        k = (min(degree, self.sh_degree) + 1) ** 2 - 1
+        return colours[:, None, :] * self.params["sh_rest"][:, :k] if k else None
 
     def activated(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """(means (N, 3), quats (N, 4), scales (N, 3), opacities (N,), colours (N, 3))."""
@@ -36,20 +53,25 @@ class GaussianModel:
                 torch.exp(p["log_colours"]))
 
     def to_scene(self, colour_space: ColourSpace, name: str = "trained") -> GaussianScene:
-        """Export as a degree-0 scene; colour = SH_C0·dc + 0.5 reproduces the trained colour."""
+        """Export at the stored SH degree: SH_C0·dc + 0.5 = c and f_rest = c·r reproduce the trained
+        colour in every dofview renderer (and the Inria file layout)."""
         with torch.no_grad():
-            means, quats, scales, opacities, colours = (t.detach().cpu().double().numpy() for t in self.activated())
+            act = self.activated()
+            sh = self.view_sh(act[4], self.sh_degree)
+            means, quats, scales, opacities, colours = (t.detach().cpu().double().numpy() for t in act)
         quats = quats / np.maximum(np.linalg.norm(quats, axis=1, keepdims=True), 1e-12)
         return GaussianScene(means=means, quats=quats, scales=scales, opacities=opacities,
-                             sh_dc=(colours - 0.5) / SH_C0, colour_space=colour_space, name=name)
+                             sh_dc=(colours - 0.5) / SH_C0, colour_space=colour_space, name=name,
+                             sh_rest=None if sh is None else sh.detach().cpu().numpy())
 
     def state(self) -> dict[str, torch.Tensor]:
         return {k: v.detach().cpu() for k, v in self.params.items()}
 
 
 def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int, linear: bool,
-                  rng: np.random.Generator, device: torch.device) -> GaussianModel:
-    """``count`` Gaussians at random points of the training cameras' frusta.
+                  rng: np.random.Generator, device: torch.device, sh_degree: int = 0) -> GaussianModel:
+    """``count`` Gaussians at random points of the training cameras' frusta, view-independent
+    at first (SH bands 1..``sh_degree`` zero).
 
     Each point is a random pixel of a random photo, pushed out to a depth drawn uniformly in
     inverse depth over the dataset's depth range (:meth:`Dataset.scene_depths`: ½× the nearest
@@ -79,4 +101,5 @@ def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int, linear
         "quats": f(quats),
         "opacity_logits": f(np.full(count, math.log(0.3 / 0.7))),
         "log_colours": f(np.log(np.maximum(colours, MIN_COLOUR))),
+        "sh_rest": f(np.zeros((count, (sh_degree + 1) ** 2 - 1, 3))),
     })

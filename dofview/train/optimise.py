@@ -5,7 +5,9 @@ depth of field), which gives a first HDR point cloud. Stage 2: each render goes 
 photo's thin lens (Eq. 3–5) and its exposure and gamma (Eq. 7) and is scored by Eq. 8. Every
 ``densify_every`` steps Gaussians whose projected means had a large mean gradient are cloned
 (small ones) or split in two (large ones), and nearly transparent ones are pruned, so the model
-grows only where the photos ask for it; the count is logged over time.
+grows only where the photos ask for it; the count is logged over time. With ``sh_degree`` > 0
+the colour turns view-dependent band by band, as the reference 3DGS trainer does (one SH degree
+more every 1000 of its 30 000 steps, here every 1/30 of ``iterations``).
 
 Variants (for the ablation): "full", "no-exp" (λ_exp = 0), "no-foc" (λ_foc = 0) and "ldr" — a
 plain 3DGS fit of the 8-bit photos as they are, ignoring exposure and defocus (sRGB output).
@@ -57,6 +59,8 @@ class TrainConfig:
     lr_quats: float = 2e-3
     lr_opacity: float = 5e-2
     lr_colours: float = 2e-2
+    lr_sh: float = 1e-2  # of the SH bands relative to the base colour (dimensionless; docs/TRAINING.md)
+    sh_degree: int = 0
     variant: str = "full"
     seed: int = 0
 
@@ -65,6 +69,12 @@ class TrainConfig:
             raise DofviewError(f"variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
         if self.iterations < 1 or self.initial < 1 or self.warmup < 0:
             raise DofviewError("iterations and initial Gaussians must be ≥ 1, warm-up ≥ 0")
+        if self.sh_degree not in (0, 1, 2, 3):
+            raise DofviewError(f"--sh-degree must be 0, 1, 2 or 3, got {self.sh_degree}")
+
+    def active_sh_degree(self, step: int) -> int:
+        """The SH degree trained at ``step``: one more every ``iterations``/30 steps, up to ``sh_degree``."""
+        return min(self.sh_degree, step // max(1, round(self.iterations / 30)))
 
 
 @dataclass
@@ -106,7 +116,8 @@ class Trainer:
         near, far = dataset.scene_depths()
         self.extent = far - near
         self.linear = config.variant != "ldr"
-        self.model = initial_model(dataset, photos, config.initial, self.linear, self.rng, self.device)
+        self.model = initial_model(dataset, photos, config.initial, self.linear, self.rng, self.device,
+                                   config.sh_degree)
         self.step = 0
         self.history = History()
         self._new_optimiser()
@@ -116,7 +127,7 @@ class Trainer:
     def _lrs(self) -> dict[str, float]:
         c = self.config
         return {"means": c.lr_means * self.extent, "log_scales": c.lr_log_scales, "quats": c.lr_quats,
-                "opacity_logits": c.lr_opacity, "log_colours": c.lr_colours}
+                "opacity_logits": c.lr_opacity, "log_colours": c.lr_colours, "sh_rest": c.lr_sh}
 
     def _new_optimiser(self) -> None:
         lrs = self._lrs()
@@ -133,15 +144,16 @@ class Trainer:
         """The loss of training photo ``i`` at the current stage, and the raster (for its mean2d)."""
         shot, photo = self.dataset.shots[i], self.photos[i]
         means, quats, scales, opacities, colours = self.model.activated()
+        sh = self.model.view_sh(colours, self.config.active_sh_degree(self.step))
         warm = self.step < self.config.warmup
         if self.config.variant == "ldr" or warm:
             raster = self.rasterise(means, quats, scales, opacities, colours, shot.camera, Lens(1.0, 0.0),
-                               TRAIN_RENDER, retain_mean2d=True)
+                                    TRAIN_RENDER, retain_mean2d=True, sh=sh)
             if self.config.variant == "ldr":
                 return delta(raster.rgb, photo), raster
             return aligned_loss(raster.rgb, photo, shot.exposure, self.key, self.dataset.gamma), raster
         raster = self.rasterise(means, quats, scales, opacities, colours, shot.camera, self.lenses[i],
-                           TRAIN_RENDER, retain_mean2d=True)
+                                TRAIN_RENDER, retain_mean2d=True, sh=sh)
         ldr = tonemap(raster.rgb, shot.exposure, self.dataset.gamma)
         loss, _ = photo_loss(ldr, photo, use_exp=self.config.variant != "no-exp",
                              use_foc=self.config.variant != "no-foc")
@@ -182,7 +194,7 @@ class Trainer:
                 sample = torch.randn(len(split), 3, device=self.device) * torch.exp(p["log_scales"][split])
                 new["means"].append(p["means"][split] + torch.einsum("nij,nj->ni", rotations(p["quats"][split]), sample))
                 new["log_scales"].append(p["log_scales"][split] - math.log(1.6))
-                for k in ("quats", "opacity_logits", "log_colours"):
+                for k in ("quats", "opacity_logits", "log_colours", "sh_rest"):
                     new[k].append(p[k][split])
             keep = torch.ones(self.model.count, dtype=torch.bool, device=self.device)
             keep[split] = False
@@ -245,9 +257,15 @@ class Trainer:
         if data.get("config", {}).get("variant") != self.config.variant:
             raise DofviewError(f"{path}: checkpoint is of variant {data.get('config', {}).get('variant')!r}, "
                                f"not {self.config.variant!r}")
+        if data.get("config", {}).get("sh_degree", 0) != self.config.sh_degree:
+            raise DofviewError(f"{path}: checkpoint has SH degree {data['config'].get('sh_degree', 0)}, "
+                               f"not --sh-degree {self.config.sh_degree}")
         self.model = GaussianModel({k: v.to(self.device) for k, v in data["params"].items()})
         self._new_optimiser()
-        self.optimiser.load_state_dict(data["optimiser"])
+        try:
+            self.optimiser.load_state_dict(data["optimiser"])
+        except ValueError:  # parameter groups differ: written before SH bands were trained
+            raise DofviewError(f"{path}: checkpoint is from an older dofview trainer; train afresh") from None
         self.step, self.history.rows = int(data["step"]), list(data["history"])
         self.rng.bit_generator.state = data["rng"]
         self._reset_stats()

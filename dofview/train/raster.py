@@ -20,6 +20,7 @@ import torch
 from dofview.camera import Camera
 from dofview.frame import RenderSettings
 from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, cut_splat, normalise_opacity
+from dofview.rendering.reference import sh_view_terms
 
 TILE = 16
 # lens.py's array namespace for torch: its minimum/maximum take a Python float where numpy's do
@@ -78,13 +79,16 @@ class Splats:
 
 def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
             colours: torch.Tensor, camera: Camera, lens: Lens,
-            settings: RenderSettings = RenderSettings()) -> Splats:
+            settings: RenderSettings = RenderSettings(), sh: torch.Tensor | None = None) -> Splats:
     """EWA-project Gaussians (activated parameters, world space) for ``camera`` through ``lens``:
     the per-Gaussian half of :func:`rasterise`, shared by the dense and sparse compositors.
 
     Args:
         means: (N, 3) scene units. quats: (N, 4) (w, x, y, z). scales: (N, 3) scene units, > 0.
         opacities: (N,) in [0, 1]. colours: (N, C) linear (or display) values, any range.
+        sh: (N, K−1, C) SH coefficients of degrees 1..3 (K = 4, 9 or 16), or None: then each drawn
+            colour is max(colours + Σ Y_j(view dir)·sh_j, 0), view dir = camera centre → mean, as
+            the GL renderer evaluates a file's ``SH_C0·f_dc + 0.5`` and ``f_rest``.
     """
     dev, dt = means.device, means.dtype
     R = torch.as_tensor(camera.R, dtype=dt, device=dev)
@@ -117,14 +121,21 @@ def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opac
     with torch.no_grad():
         r2 = r2[sel]
         ext = torch.sqrt(r2[:, None] * torch.stack([sxx, syy], 1))  # ≤ 3σ, as quads.vert
+    drawn = front[sel]
+    colour = colours[drawn]
+    if sh is not None and sh.shape[1]:
+        centre = torch.as_tensor(camera.centre, dtype=dt, device=dev)
+        d = torch.nn.functional.normalize(means[drawn] - centre, dim=1, eps=1e-30)
+        colour = torch.clamp(colour + sh_view_terms(sh[drawn], d), min=0.0)
     return Splats(mean2d=mean2d, conic=torch.stack([syy / det, -sxy / det, sxx / det], 1), opacity=o[sel],
-                  colour=colours[front[sel]], support=r2, lo=mean2d.detach() - ext, hi=mean2d.detach() + ext,
-                  drawn=front[sel])
+                  colour=colour, support=r2, lo=mean2d.detach() - ext, hi=mean2d.detach() + ext,
+                  drawn=drawn)
 
 
 def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
               colours: torch.Tensor, camera: Camera, lens: Lens,
-              settings: RenderSettings = RenderSettings(), retain_mean2d: bool = False) -> Raster:
+              settings: RenderSettings = RenderSettings(), retain_mean2d: bool = False,
+              sh: torch.Tensor | None = None) -> Raster:
     """Render Gaussians (activated parameters, world space) for ``camera`` through ``lens``,
     compositing densely per tile (autograd through every pixel × Gaussian of a tile).
 
@@ -132,8 +143,9 @@ def rasterise(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, op
         means: (N, 3) scene units. quats: (N, 4) (w, x, y, z). scales: (N, 3) scene units, > 0.
         opacities: (N,) in [0, 1]. colours: (N, 3) linear (or display) values, any range.
         retain_mean2d: keep the gradient of the projected means (for densification).
+        sh: (N, K−1, 3) view-dependent SH coefficients, or None (see :func:`project`).
     """
-    s = project(means, quats, scales, opacities, colours, camera, lens, settings)
+    s = project(means, quats, scales, opacities, colours, camera, lens, settings, sh)
     if retain_mean2d and s.mean2d.requires_grad:
         s.mean2d.retain_grad()
     dev, dt = means.device, means.dtype

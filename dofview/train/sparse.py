@@ -235,16 +235,17 @@ class _Composite(torch.autograd.Function):
 def rasterise_sparse(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
                      colours: torch.Tensor, camera: Camera, lens: Lens,
                      settings: RenderSettings = RenderSettings(), retain_mean2d: bool = False,
-                     budget: int = FRAGMENTS_PER_CHUNK) -> Raster:
+                     sh: torch.Tensor | None = None, budget: int = FRAGMENTS_PER_CHUNK) -> Raster:
     """:func:`dofview.train.raster.rasterise`, composited sparsely (see the module docstring).
 
     Args:
         means: (N, 3) scene units. quats: (N, 4) (w, x, y, z). scales: (N, 3) scene units, > 0.
         opacities: (N,) in [0, 1]. colours: (N, C) linear (or display) values, any range.
         retain_mean2d: keep the gradient of the projected means (for densification).
+        sh: (N, K−1, 3) view-dependent SH coefficients, or None (see :func:`project`).
         budget: fragments per chunk (memory bound; any value gives the same image).
     """
-    s = project(means, quats, scales, opacities, colours, camera, lens, settings)
+    s = project(means, quats, scales, opacities, colours, camera, lens, settings, sh)
     if retain_mean2d and s.mean2d.requires_grad:
         s.mean2d.retain_grad()
     w, h = camera.width, camera.height

@@ -7,13 +7,15 @@
 // the slice's unblurred depth sums under the same blend, whose destination alpha is the pinhole
 // coverage in front: the sliced image carries the pinhole's depth. u_masked (an unblurred slice
 // into the sum of visible parts): the slice weighted by the pinhole transmittance in front of it,
-// 1 − u_cover.a.
+// 1 − u_cover.a. u_part (an unblurred part of a shared slice): weighted by its share
+// (slice_share.glsl).
 
 uniform sampler2D u_colour;
 uniform sampler2D u_depth;
 uniform sampler2D u_cover;
 uniform int u_scale;
 uniform bool u_masked;
+#include "slice_share.glsl"
 
 layout(location = 0) out vec4 out_colour;
 layout(location = 1) out vec4 out_depth;
@@ -22,7 +24,8 @@ void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     out_depth = texelFetch(u_depth, p, 0);
     if (u_scale == 1) {
-        out_colour = texelFetch(u_colour, p, 0) * (u_masked ? 1.0 - texelFetch(u_cover, p, 0).a : 1.0);
+        vec4 c = texelFetch(u_colour, p, 0);
+        out_colour = c * (u_masked ? 1.0 - texelFetch(u_cover, p, 0).a : 1.0) * share_part(p, c.a);
         return;
     }
     ivec2 n = textureSize(u_colour, 0);
