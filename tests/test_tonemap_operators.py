@@ -1,5 +1,5 @@
-"""Tone-mapping operators (dofview.tonemap.OPERATORS) against the invariances of
-../shared/TONEMAP.md, the temporal smoothing, the statistics, and the CLI's EXR/PNG contract.
+"""Tone-mapping operators (dofview.tonemap.OPERATORS) against the invariances the project's
+tone-mapping notes ask of them (docs/BENCHMARKS.md, "Tone mapping"), the temporal smoothing, the statistics, and the CLI's EXR/PNG contract.
 The GLSL-vs-numpy comparison of every operator is test_renderer.py::test_gpu_tonemap_matches_numpy."""
 
 from __future__ import annotations
