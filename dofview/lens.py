@@ -380,13 +380,13 @@ def cut_splat(opacity, tau: float, mode: str, xp=np):
     """The τ cut of splats of opacity o′ (lens.glsl's cut_splat): returns (kept, opacity drawn,
     support bound r2 on dᵀΣ′⁻¹d, ≤ 9). "drop": o′ where α ≥ τ, q ≤ 2 ln(o′/τ), culled when
     o′ < τ; "conserve": o′ + τ inside q ≤ 2 ln(1 + o′/τ), which carries the untruncated mass."""
-    o = opacity
+    o = opacity  # bounds by .clip (numpy arrays and torch tensors alike; xp.minimum wants two arrays in torch)
     if tau > 0 and mode == "conserve":
-        return o > 0, o + tau, xp.minimum(2.0 * xp.log1p(o / tau), SUPPORT_MAX)
-    kept = (o > 0) & (xp.minimum(o, ALPHA_MAX) >= tau)
+        return o > 0, o + tau, (2.0 * xp.log1p(o / tau)).clip(max=SUPPORT_MAX)
+    kept = (o > 0) & (o.clip(max=ALPHA_MAX) >= tau)
     if tau == 0:
         return kept, o, xp.full_like(o, SUPPORT_MAX)
-    return kept, o, xp.minimum(2.0 * xp.log(xp.maximum(o, 1e-300) / tau), SUPPORT_MAX)
+    return kept, o, (2.0 * xp.log(o.clip(min=1e-300) / tau)).clip(max=SUPPORT_MAX)
 
 
 def normalise_opacity(opacity, beta, mode: str, xp=np):

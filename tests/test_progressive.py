@@ -18,6 +18,7 @@ import pytest
 from conftest import psnr, random_scene
 from test_viewer import CARDS_PLY, ROOT, display, run_viewer  # noqa: F401  (display is a fixture)
 
+from dofview.bench.refinement import disk_sequence
 from dofview.bench.sliced_study import cases_for
 from dofview.bench.variants import errors, make_references
 from dofview.camera import look_at
@@ -28,7 +29,6 @@ from dofview.io.png import read_png
 from dofview.lens import Lens
 from dofview.rendering.accumulate import accumulate
 from dofview.rendering.progressive import (
-    disk_sequence,
     pass_settings,
     render_lens_samples,
     stage_points,

@@ -6,7 +6,7 @@ sliced_study.cases_for): the PSNR of the display image against the physical trut
 linear-light average of ``--samples`` pinhole images, variants.make_references) of
 - the anchors' single pass (energy normalisation, τ = 1/255, k = 1/9, 1/4, 1) — the best of them is
   the figure to beat —,
-- the pinhole-average refinement (N pinhole passes at the R2 points progressive.disk_sequence, τ = 0),
+- the pinhole-average refinement (N pinhole passes at the R2 points of disk_sequence, τ = 0),
 - the stage refinement (N passes of the sub-aperture A/√N at progressive.stage_points, default
   settings: ``dofview render --lens-samples N``), and that with other lens points (spread, layout).
 
@@ -19,6 +19,7 @@ prints one tab-separated line per scene, case, method and N: PSNR, and PSNR over
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import replace
@@ -33,7 +34,7 @@ from dofview.frame import Frame, RenderSettings
 from dofview.lens import Lens
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.accumulate import accumulate
-from dofview.rendering.progressive import SPREAD, disk_sequence, pass_settings, render_lens_samples
+from dofview.rendering.progressive import SPREAD, pass_settings, render_lens_samples
 from dofview.tonemap import Tonemap
 from dofview.tonemap.display import display
 
@@ -41,6 +42,20 @@ COUNTS = (2, 4, 8, 16)
 OTHER_POINTS = {"stages, spread 0.9": {"spread": 0.9}, "stages, sunflower points": {"layout": "sunflower"}}
 """Lens points measured beside the default (CVT centroids at progressive.SPREAD), at N = 4 and 8."""
 GHOST_N = 4
+
+
+PLASTIC = 1.324717957244746  # the plastic number: the 2D golden ratio of the R2 sequence
+
+
+def disk_sequence(n: int) -> np.ndarray:
+    """(n, 2) float64 points of the unit disk: the first n of the R2 low-discrepancy sequence
+    (Roberts 2018) mapped area-preservingly (r = √u₁, θ = 2π·u₂); a prefix of one infinite sequence
+    for every n. The lens points of the pinhole-average refinement that
+    rendering/progressive.py's stages replaced, kept here as this benchmark's comparison."""
+    i = np.arange(1, n + 1, dtype=np.float64)[:, None]
+    u = np.mod(0.5 + i * np.array([1.0 / PLASTIC, 1.0 / PLASTIC ** 2]), 1.0)
+    r, th = np.sqrt(u[:, 0]), 2.0 * math.pi * u[:, 1]
+    return np.stack([r * np.cos(th), r * np.sin(th)], axis=1)
 
 
 def pinhole_average(renderer: Renderer, camera, lens: Lens, n: int) -> Frame:

@@ -34,7 +34,7 @@ def accumulate(render_pinhole: Callable[[Camera], Frame], camera: Camera, lens: 
 
     ``render_pinhole(camera)`` must render with aperture 0: the GL renderer and the CPU reference
     both fit. ``progress(i, n)`` is called after each sample. ``points``: (samples, 2) points of
-    the unit disk to use instead of :func:`lens_samples` (e.g. progressive.disk_sequence).
+    the unit disk to use instead of :func:`lens_samples` (e.g. bench.refinement.disk_sequence).
     """
     if samples < 1:
         raise ValueError("samples must be ≥ 1")

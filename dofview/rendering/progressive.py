@@ -32,21 +32,9 @@ from dofview.rendering.accumulate import lens_samples
 from dofview.rendering.base import Renderer
 from dofview.rendering.gl import load_shader
 
-PLASTIC = 1.324717957244746  # the plastic number: the 2D golden ratio of the R2 sequence
 SPREAD = 1.0
 """RMS radius of a stage's lens points over the one that gives the stage the lens's second moment
 (see :func:`stage_points`); measured in docs/BENCHMARKS.md, "Lens refinement without ghosts"."""
-
-
-def disk_sequence(n: int) -> np.ndarray:
-    """(n, 2) float64 points of the unit disk: the first n of the R2 low-discrepancy sequence
-    (Roberts 2018) mapped area-preservingly (r = √u₁, θ = 2π·u₂); a prefix of one infinite sequence
-    for every n. The lens points of the pinhole-average refinement this module replaced, kept as the
-    benchmark's comparison (bench/refinement.py)."""
-    i = np.arange(1, n + 1, dtype=np.float64)[:, None]
-    u = np.mod(0.5 + i * np.array([1.0 / PLASTIC, 1.0 / PLASTIC ** 2]), 1.0)
-    r, th = np.sqrt(u[:, 0]), 2.0 * math.pi * u[:, 1]
-    return np.stack([r * np.cos(th), r * np.sin(th)], axis=1)
 
 
 LAYOUTS = ("cvt", "sunflower")

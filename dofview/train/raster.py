@@ -13,7 +13,6 @@ box reaches the tile, so cost ~ pixels × Gaussians per tile. Meant for small tr
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import torch
 
@@ -23,10 +22,6 @@ from dofview.lens import ALPHA_MAX, Lens, blur_footprint, coc, cut_splat, normal
 from dofview.rendering.reference import sh_view_terms
 
 TILE = 16
-# lens.py's array namespace for torch: its minimum/maximum take a Python float where numpy's do
-XP = SimpleNamespace(minimum=lambda a, b: torch.clamp(a, max=b), maximum=lambda a, b: torch.clamp(a, min=b),
-                     log=torch.log, log1p=torch.log1p, exp=torch.exp, full_like=torch.full_like)
-
 
 @dataclass
 class Raster:
@@ -114,7 +109,7 @@ def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opac
     sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
     o = normalise_opacity(opacities[front], beta, settings.opacity_norm, xp=torch)
     with torch.no_grad():
-        kept, _, r2 = cut_splat(o, settings.tau, "drop", xp=XP)
+        kept, _, r2 = cut_splat(o, settings.tau, "drop", xp=torch)
         sel = torch.nonzero(kept & torch.isfinite(det) & (det > 0)).squeeze(1)
     mean2d = torch.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], 1)[sel]
     sxx, sxy, syy, det = sxx[sel], sxy[sel], syy[sel], det[sel]
