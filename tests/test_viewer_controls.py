@@ -159,7 +159,7 @@ def test_settings_build_the_render_objects():
     assert s.tonemap().multiplier == pytest.approx(2.0 * 0.5 / s.fnumber ** 2)
     s.fnumber *= 2  # one more f-number doubling: a quarter of the light
     assert s.tonemap().multiplier == pytest.approx(2.0 * 0.5 / s.fnumber ** 2)
-    assert s.lens_info()["fnumber"] == s.fnumber
+    assert s.lens_request().to_dict()["fnumber"] == s.fnumber
 
 
 def test_sort_thread_matches_front_to_back():

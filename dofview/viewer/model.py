@@ -326,7 +326,7 @@ class ViewerModel:
             camera = self.camera()
             save_render(self.renderer, camera, self.lens(camera), self.settings.tonemap(), self.settings.render,
                         str(self.scene_path), out, out.with_suffix(".png") if png else None,
-                        lens_info=self.settings.lens_info(),
+                        lens_info=self.settings.lens_request().to_dict(),
                         stats=self.smoother.state if self.settings.tonemap().operator.adaptive else None)
         except DofviewError as e:
             self.error = str(e)

@@ -83,10 +83,6 @@ class ViewerSettings:
         return operator_from_dict({"operator": self.tonemap_operator,
                                    **{k: v for k, v in self.tonemap_params.items() if k in names}})
 
-    def lens_info(self) -> dict[str, object]:
-        """What a saved EXR's header records of the lens besides the strength (LensRequest.to_dict)."""
-        return self.lens_request().to_dict()
-
 
 class FocusPull:
     """A focus change eased over :data:`FOCUS_PULL_S` seconds, in inverse depth (how blur changes).
