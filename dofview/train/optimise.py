@@ -35,7 +35,7 @@ from dofview.train.sparse import RASTERISERS
 
 VARIANTS = ("full", "no-exp", "no-foc", "ldr")
 # The trainer splats with τ = 0 (3σ support): a τ cut would hide faint Gaussians from the gradient.
-TRAIN_RENDER = RenderSettings(tau=0.0)
+TRAIN_RENDER = RenderSettings(tau=0.0, dof="splat")  # the per-splat lens model the trainer fits with
 
 
 @dataclass(frozen=True)
