@@ -118,6 +118,12 @@ def session(display, tmp_path_factory):
         {"do": "set", "physical": False, "exposure_follows_aperture": False, "colour_space": "linear"},
         {"do": "capture", "path": out / "linear.png"},
         {"do": "report", "path": out / "linear.json"},
+        {"do": "set", "colour_space": "srgb", "aperture": 60.0, "blades": 6, "blade_rotation": 30.0},
+        {"do": "capture", "path": out / "blades.png"},
+        {"do": "report", "path": out / "blades.json"},
+        {"do": "set", "dof": "splat", "blades": 0, "blade_rotation": 0.0},
+        {"do": "capture", "path": out / "splat.png"},
+        {"do": "report", "path": out / "splat.json"},
         {"do": "open", "path": bad},
         {"do": "report", "path": out / "bad.json"},
         {"do": "screenshot", "path": out / "bad.png"},
@@ -163,7 +169,7 @@ def test_viewer_starts_on_the_chosen_view(session):
 
 
 @pytest.mark.parametrize("name, focus_aid", [("lens", False), ("aid", True), ("orbit", False), ("physical", False),
-                                             ("linear", False)])
+                                             ("linear", False), ("blades", False), ("splat", False)])
 def test_window_matches_headless_render(session, name, focus_aid):
     """The image area read back from the window equals the headless render of the same parameters."""
     out, r = session
@@ -171,6 +177,15 @@ def test_window_matches_headless_render(session, name, focus_aid):
     expected = headless_display(r[name], focus_aid)
     assert shown.shape == expected.shape
     assert psnr(shown, expected, 255.0) >= MIN_PSNR
+
+
+def test_blur_method_and_blades_reach_the_renderer(session):
+    """The panel's "blur method" and "aperture blades" (script "set" as the panel sets them): the
+    depth-layer default, a hexagon, then the per-splat method."""
+    _, r = session
+    assert r["lens"]["render"]["dof"] == "sliced"
+    assert r["blades"]["render"]["blades"] == 6 and r["blades"]["render"]["blade_rotation"] == 30.0
+    assert r["splat"]["render"]["dof"] == "splat"
 
 
 def test_physical_lens_and_exposure_from_aperture(session):

@@ -110,14 +110,15 @@ def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderS
     the progressive thin lens (the viewer's stage of n sub-aperture passes, rendering/progressive.py,
     a separate estimate from the reference even at ``ref_samples``). ``time_ratio``
     is the median frame time over that of the pinhole frame at the default τ on the same camera,
-    all timed round-robin; accumulation counts n pass frames. The variant named
+    all timed round-robin; accumulation counts n frames of the base settings (a stage's passes).
+    The variant named
     "pinhole" is drawn at aperture 0."""
     tm = tm or Tonemap()
     timer = FrameTimer(renderer.ctx)
     hdr = renderer.scene.colour_space == "linear"
     base = RenderSettings()
     rows: list[dict] = []
-    steps = len(cases) * (ref_samples + len(acc_samples) + len(variants) * (frames + 2) + frames + 1)
+    steps = len(cases) * (ref_samples + len(acc_samples) + len(variants) * (frames + 2) + 2 * (frames + 1))
     with Progress("study", steps) as prog:
         tick = Steps(prog)
         for i, case in enumerate(cases):
@@ -125,10 +126,12 @@ def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderS
             label = f"case {i + 1}/{len(cases)} (CoC {case.coc_px:g} px)"
             pin = Lens(lens.focus, 0.0)
             lenses = [pin if name == "pinhole" else lens for name in variants]
-            jobs = [(renderer, cam, pin, replace(base, dof="splat"))] + [(renderer, cam, ln, st) for ln, st in zip(lenses, variants.values())]
+            jobs = [(renderer, cam, pin, replace(base, dof="splat")), (renderer, cam, lens, base)]
+            jobs += [(renderer, cam, ln, st) for ln, st in zip(lenses, variants.values())]
             tick.stage(f"{label}: timing frame", len(jobs) * (frames + 1))
             times = time_round_robin(jobs, timer, frames, 1, tick)
             pin_ms = times[0]["wall_med_ms"]
+            pass_ratio = times[1]["wall_med_ms"] / pin_ms  # one pass of a stage: a frame of the base settings
             tick.stage(f"{label}: truth lens sample", ref_samples)
             truth = make_references(renderer, cam, lens, base, ref_samples, False, tick).physical
             info = {"view": case.view, "focus": lens.focus, "aperture": lens.aperture,
@@ -137,9 +140,9 @@ def run_study(renderer: Renderer, cases: list[Case], variants: dict[str, RenderS
             for n in acc_samples:
                 e = errors(render_lens_samples(renderer, cam, lens, base, n), truth, tm, hdr)
                 tick()
-                rows.append({**info, "method": f"accumulation {n}", "samples": n, **e, "time_ratio": float(n)})
+                rows.append({**info, "method": f"accumulation {n}", "samples": n, **e, "time_ratio": n * pass_ratio})
             tick.stage(f"{label}: single-pass variant", len(variants))
-            for (name, st), ln, t in zip(variants.items(), lenses, times[1:]):
+            for (name, st), ln, t in zip(variants.items(), lenses, times[2:]):
                 e = errors(renderer.render(cam, ln, st), truth, tm, hdr)
                 tick()
                 rows.append({**info, "method": name, "samples": 1, **e, "time_ratio": t["wall_med_ms"] / pin_ms})
@@ -175,7 +178,8 @@ def plot_study(path, name: str, summary: dict[str, dict[str, float]], ref_sample
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     acc = [(v["time_ratio"], v["psnr"], m) for m, v in summary.items() if m.startswith("accumulation")]
-    ax.plot([a[0] for a in acc], [a[1] for a in acc], "o-", color="black", ms=3, label="thin-lens accumulation (n passes)")
+    ax.plot([a[0] for a in acc], [a[1] for a in acc], "o-", color="black", ms=3,
+            label="progressive thin lens (stage of n passes)")
     for t, p, m in acc:
         ax.annotate(m.split()[1], (t, p), textcoords="offset points", xytext=(3, -10), fontsize=7)
     single = [(v["time_ratio"], v["psnr"], m) for m, v in summary.items() if not m.startswith("accumulation")]

@@ -1,28 +1,32 @@
-"""Sliced depth of field on the GPU (``RenderSettings.dof == "sliced"``), the GL twin of slices.py.
+"""Sliced depth of field on the GPU (``RenderSettings.dof == "sliced"``, the default), the GL twin
+of slices.py.
 
 The backend's draw order, nearest first, is cut into contiguous layers by signed CoC
 c = ½·A·(1/z − 1/d_f) px (slices.plan_layers). Front to back, each layer is blended by the backend
 as a pinhole with the frame's τ (:meth:`Renderer._splat_range`) into one reused slice target, then
 
-1. prepared (glsl/slice_prepare.frag) at its level 1/s: blocks averaged, each pixel's blur radius
-   the CoC of its mean inverse depth, colour and visible coverage divided by the aperture's N(r);
-   its depth sums added under their transmittance to the renderer's depth target, which so ends
-   up holding the pinhole's depth (EXR Z, click-to-focus);
-2. gathered (slice_gather.frag): every pixel spread over the aperture of its own radius, blended
-   front to back into the frame's accumulators ("over" colour, summed visible coverage), or for a
-   reduced layer into its run's (the consecutive layers of one level), which is upsampled into the
-   frame's once the run ends (slice_upsample.frag);
+1. glsl/slice_visible.comp adds its depth sums under their transmittance to the renderer's depth
+   target (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps the
+   layer's visible coverage beside them;
+2. slice_reduce.frag averages it 2 × 2 down to its level 1/s, clearing the slice target on the
+   way (a full-resolution layer is cleared after its prepare), and slice_prepare.frag gives each
+   texel its signed blur (the CoC of its mean inverse depth) and divides it by the kernel's N;
+3. slice_gather.frag spreads every texel over the kernel at its own blur (slice_kernel.glsl: the
+   aperture, or a lens cell of progressive refinement), blended front to back into the frame's
+   accumulators ("over" colour, summed visible coverage), or for a reduced layer into its run's
+   (the consecutive layers of one level), which slice_upsample.frag composites into the frame's
+   once the run ends;
 
-and the resolve (slice_resolve.frag) writes the renderer's colour target: "over", scaled up to the
-visible coverage where a cut between layers left it short. The splats beyond SliceRule.huge px of
-CoC (near the camera indoors) form a front and a back layer drawn by the per-splat method with the
-lens and the frame's settings. At A = 0 there is one layer, not blurred: the pinhole render.
+and slice_resolve.frag writes the renderer's colour target: "over", scaled up to the visible
+coverage where a cut between layers left it short. With a finite SliceRule.huge the splats beyond
+it form a front and a back layer drawn by the per-splat method (the benchmark's comparison). At
+A = 0 there is one layer, not blurred: the pinhole render.
 
-Only the pixels a layer's Gaussians can reach (:func:`screen_boxes`) and its blur radius around
-them are cleared, prepared, gathered and upsampled. GPU memory (:attr:`SlicedDof.gpu_bytes`): the
-slice colour and depth sums, the two accumulators and the prepared layer at full resolution
-(RGBA32F ×5 and RG32F: 88 B per pixel), and per reduced level s the prepared layer and the run's
-accumulators (56/s² B per pixel): ≤ 107 B per pixel besides the renderer's own targets.
+Only the pixels a layer's Gaussians can reach (:func:`screen_boxes`) and its blur around them are
+processed. GPU memory (:attr:`SlicedDof.gpu_bytes`): at full resolution the slice colour and depth
+sums, the two accumulators and the prepared layer (RGBA32F ×5 and RG32F: 88 B per pixel), and per
+reduced level s the layer averaged down, prepared, and a run's accumulators (88/s² B per pixel):
+≤ 117 B per pixel in all (≈ 117 MB per megapixel) besides the renderer's own targets.
 """
 
 from __future__ import annotations

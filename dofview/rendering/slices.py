@@ -31,9 +31,11 @@ cannot show what a blurred foreground edge hid; the resolve (:func:`resolve`) sc
 composite up to that sum's coverage (capped at 1) where it falls short, so cuts close and hidden
 surfaces still show.
 
-Splats whose CoC is beyond :attr:`SliceRule.huge` (near-camera Gaussians indoors, blurred by
-hundreds of pixels) are not sliced: a front and a back layer drawn by the per-splat method, where
-energy normalisation makes them nearly vanish, as physically they nearly do.
+Near-camera Gaussians indoors, blurred by hundreds of pixels, are sliced like the rest (at levels
+down to a few texels, their light kept): a wall a hand's breadth from the lens stays an opaque blur.
+A finite :attr:`SliceRule.huge` instead draws the splats beyond it by the per-splat method as a
+front and a back layer, where energy normalisation makes them nearly vanish (the benchmark
+compares the two: docs/BENCHMARKS.md, "Sliced depth of field", indoors).
 
 This module is the CPU twin of the GL path (rendering/sliced.py), pass for pass: images are in
 GL orientation there (rows from the bottom), so :func:`sliced_image` flips its inputs, and blocks
@@ -62,7 +64,7 @@ class SliceRule:
         growth: each layer farther from focus is this factor wider than the one before (≥ 1):
             uniform in 1/z near focus, a relative step where the blur is large.
         huge: |c| (px) from which splats leave the layers for the per-splat front/back layers;
-            inf keeps every splat in a layer.
+            inf (the default) keeps every splat in a layer.
         limit: largest blur radius px gathered at full resolution; a layer blurred further
             blurs at the 1/2ᵏ resolution that brings its smallest radius to ≤ limit.
         spread: β, the variance (px², per axis, per s² − 1) that the box average and the bilinear

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from imgui_bundle import imgui
 
-from dofview.frame import OPACITY_NORMS
+from dofview.frame import DOF_MODES, OPACITY_NORMS
 from dofview.io import READERS
 from dofview.scene import COLOUR_SPACES
 from dofview.viewer.input import HELP
@@ -118,11 +118,36 @@ def _lens(v: "PanelHost") -> None:
         top = max(v.model.aperture_for_blur(MAX_COC_PX), s.aperture)  # the largest blur in view reaches 30 px
         _, s.aperture = _log_slider("aperture A", s.aperture, 0.0, top)
         _tip("aperture strength A, px x scene unit (--aperture):\nblur radius R = A/2 * |1/z - 1/focus| px")
+    _aperture_shape(v)
     _, s.smooth_focus = imgui.checkbox("smooth focus pull", s.smooth_focus)
     _tip("click-to-focus eases over 0.15 s instead of jumping")
     imgui.same_line()
     _, s.focus_aid = imgui.checkbox("focus aid", s.focus_aid)
     _tip("tint the sharp band: blur radius below one pixel (G)")
+
+
+DOF_LABELS = {"sliced": "depth layers", "splat": "per splat"}
+
+
+def _aperture_shape(v: "PanelHost") -> None:
+    """How the blur is made (--dof) and, for depth layers, the aperture's blades."""
+    s = v.model.settings
+    rs = s.render
+    labels = [DOF_LABELS[m] for m in DOF_MODES]
+    changed_mode, mode = imgui.combo("blur method", DOF_MODES.index(rs.dof), labels)
+    _tip("--dof: depth layers blend the scene as a pinhole in slices of equal blur and blur each\n"
+         "with the aperture, as a lens does (the default); per splat blurs each splat on its own,\n"
+         "the published single pass (its settings: Splatting)")
+    imgui.begin_disabled(rs.dof != "sliced")
+    changed_blades, blades = imgui.slider_int("aperture blades", rs.blades, 0, 16)
+    _tip("--blades: 0 a round aperture, 3 and more a polygon (bokeh shapes);\n"
+         "in front of the focus plane a lens shows it turned half a turn")
+    changed_rot, rotation = _slider("blade rotation", rs.blade_rotation, 0.0, 360.0, "%.0f deg")
+    _tip("--blade-rotation: the polygon's first corner, degrees from image right")
+    imgui.end_disabled()
+    if changed_mode or changed_blades or changed_rot:
+        blades = 0 if blades < 3 else blades  # 1 and 2 blades make no aperture
+        s.render = replace(rs, dof=DOF_MODES[mode], blades=blades, blade_rotation=rotation)
 
 
 def _splatting(v: "PanelHost") -> None:
@@ -132,15 +157,17 @@ def _splatting(v: "PanelHost") -> None:
     changed_tau, tau = _slider("min. opacity", rs.tau * 255.0, 0.0, 16.0, "%.2f/255")
     _tip("tau, minimum alpha (--tau): contributions fainter than this are skipped\n"
          "(lower: more exact, higher: faster)")
+    imgui.begin_disabled(rs.dof != "splat")  # the per-splat blur's own knobs
     changed_k, k = _slider("blur spread", rs.k, 0.0, 1.0)
     _tip("k, aperture covariance scale (--k): a blurred splat's covariance grows by k * R^2\n"
          "(0.25: as wide as the thin lens's circle of confusion)")
     changed_norm, norm = imgui.combo("blur brightness", OPACITY_NORMS.index(rs.opacity_norm), list(OPACITY_NORMS))
     _tip("opacity normalisation (--opacity-norm): how a splat's opacity falls as the blur spreads it\n"
          "(energy: its light is kept; none: opacity unchanged, blurred splats brighten)")
+    imgui.end_disabled()
     changed_lin, lin = imgui.checkbox("blend in linear light", rs.blend_linear)
     _tip("--blend-linear: decode sRGB-encoded colours to linear light before blending")
-    imgui.begin_disabled(rs.kernel == "disk")  # the disk kernel is defined with the drop cut only
+    imgui.begin_disabled(rs.kernel == "disk" or rs.dof != "splat")  # the disk kernel: the drop cut only
     changed_cut, conserve = imgui.checkbox("keep the light of faint edges", rs.cut == "conserve")
     _tip("--cut conserve: the min. opacity cut keeps each splat's whole light\n"
          "(off: --cut drop, faint edges are dropped)")
