@@ -37,10 +37,11 @@ def add_parser(sub) -> None:
                    help="view-dependent colour: SH degree, bands added progressively (default 0: one radiance "
                         "per Gaussian, the fastest; docs/TRAINING.md)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
-    p.add_argument("--torch-raster", choices=("sparse", "dense"), default="sparse",
-                   help="the differentiable torch rasteriser the fit runs on (not a GL backend: --raster names "
-                        "those): sparse per-pixel fragment lists (default, the faster: docs/TRAINING.md) or the "
-                        "dense per-tile one (the test oracle)")
+    p.add_argument("--torch-raster", choices=("native", "sparse", "dense"),
+                   help="the differentiable rasteriser the fit runs on (not a GL backend: --raster names those): "
+                        "native (compositing in C, built on first use with the system C compiler; the default on "
+                        "the CPU when it builds, the fastest: docs/TRAINING.md), sparse (plain torch per-pixel "
+                        "fragment lists; the default otherwise) or dense (per tile, the test oracle)")
     p.add_argument("--checkpoint", type=Path, help="checkpoint file (default OUTPUT.ckpt)")
     p.add_argument("--checkpoint-every", type=number(0, None, integer=True, what="checkpoint interval"), default=500,
                    help="steps between checkpoints, 0 = none (default 500)")

@@ -31,7 +31,7 @@ from dofview.train.dataset import Dataset, load_photo
 from dofview.train.losses import aligned_loss, delta, photo_loss, tonemap
 from dofview.train.model import PARAMS, GaussianModel, initial_model
 from dofview.train.raster import rotations
-from dofview.train.sparse import RASTERISERS
+from dofview.train.rasterisers import RASTERISERS, choose_rasteriser
 
 VARIANTS = ("full", "no-exp", "no-foc", "ldr")
 # The trainer splats with τ = 0 (3σ support): a τ cut would hide faint Gaussians from the gradient.
@@ -97,12 +97,11 @@ class Trainer:
     """Fits a :class:`GaussianModel` to a :class:`Dataset` (see the module docstring)."""
 
     def __init__(self, dataset: Dataset, config: TrainConfig = TrainConfig(), device: str = "auto",
-                 raster: str = "sparse") -> None:
-        if raster not in RASTERISERS:
-            raise DofviewError(f"--raster must be one of {', '.join(RASTERISERS)}, got {raster!r}")
+                 raster: str | None = None) -> None:
         self.dataset, self.config = dataset, config
-        self.rasterise = RASTERISERS[raster]
         self.device = pick_device(device)
+        self.raster = choose_rasteriser(raster, self.device)
+        self.rasterise = RASTERISERS[self.raster]
         if self.device.type == "cpu":
             # The tensors are small: one thread is as fast, and several spin-wait badly (10–20×
             # slower steps) whenever another process holds a core.
