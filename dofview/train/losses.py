@@ -37,10 +37,9 @@ def _blur(x: torch.Tensor, size: int, sigma: float) -> torch.Tensor:
 def ssim(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Mean SSIM (11×11 Gaussian window, σ = 1.5) of two (H, W, C) images in [0, 1]-ish units."""
     x, y = a.permute(2, 0, 1), b.permute(2, 0, 1)
-    mx, my = _blur(x, 11, 1.5), _blur(y, 11, 1.5)
-    vx = _blur(x * x, 11, 1.5) - mx * mx
-    vy = _blur(y * y, 11, 1.5) - my * my
-    cxy = _blur(x * y, 11, 1.5) - mx * my
+    # the five local means in one filter call: on CPU, most of a depthwise convolution's time is per call
+    mx, my, xx, yy, xy = _blur(torch.cat([x, y, x * x, y * y, x * y]), 11, 1.5).chunk(5)
+    vx, vy, cxy = xx - mx * mx, yy - my * my, xy - mx * my
     c1, c2 = 0.01 ** 2, 0.03 ** 2
     return (((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))).mean()
 

@@ -16,6 +16,7 @@ plain 3DGS fit of the 8-bit photos as they are, ignoring exposure and defocus (s
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from dofview.io.atomic import atomic_output
 from dofview.lens import Lens
 from dofview.progress import Progress
 from dofview.train.dataset import Dataset, load_photo
+from dofview.train.evaluate import evaluate
 from dofview.train.losses import aligned_loss, delta, photo_loss, tonemap
 from dofview.train.model import PARAMS, GaussianModel, initial_model
 from dofview.train.raster import rotations
@@ -79,10 +81,13 @@ class TrainConfig:
 
 @dataclass
 class History:
-    """What happened, every ``every`` steps: step, stage, mean loss since the last record, count."""
+    """What happened: every ``every`` steps step, stage, mean loss since the last record and
+    Gaussian count (``rows``); at each checkpoint the held-out score (``scores``: step, mean
+    log-radiance PSNR in dB and bright-region ratio on the dataset's held-out views)."""
 
     every: int = 50
     rows: list[dict] = field(default_factory=list)
+    scores: list[dict] = field(default_factory=list)
 
 
 def pick_device(name: str = "auto") -> torch.device:
@@ -116,9 +121,10 @@ class Trainer:
         self.extent = far - near
         self.linear = config.variant != "ldr"
         self.model = initial_model(dataset, photos, config.initial, self.linear, self.rng, self.device,
-                                   config.sh_degree)
+                                   config.sh_degree, config.max_gaussians)
         self.step = 0
         self.history = History()
+        self.scoring = bool(dataset.held_out)  # off for good once the renderer is found missing
         self._new_optimiser()
         self._reset_stats()
 
@@ -224,27 +230,53 @@ class Trainer:
 
     # ---- the loop, checkpoints -------------------------------------------------------------
     def run(self, progress: bool = True, checkpoint: Path | None = None, checkpoint_every: int = 0) -> GaussianModel:
-        """Train to ``config.iterations`` steps (from wherever a resumed run stands)."""
+        """Train to ``config.iterations`` steps (from wherever a resumed run stands); every
+        ``checkpoint_every`` steps score the held-out views and write ``checkpoint``."""
         c = self.config
         total, seen = 0.0, 0
-        with Progress(f"training ({c.variant})", c.iterations, delay=0.5 if progress else 1e9) as bar:
+        score = ""
+        with Progress(f"training ({c.variant}, {self.raster})", c.iterations, delay=0.5 if progress else 1e9,
+                      resumed=self.step) as bar:
             while self.step < c.iterations:
                 total += self.train_step()
                 seen += 1
+                due = checkpoint is not None and checkpoint_every and self.step % checkpoint_every == 0
+                if due and self.score_held_out() is not None:
+                    score = f" · held-out {self.history.scores[-1]['log_psnr']:.2f} dB"
                 if self.step % self.history.every == 0 or self.step == c.iterations:
                     stage = "warm-up" if self.step <= c.warmup and c.variant != "ldr" else "full"
                     self.history.rows.append({"step": self.step, "stage": stage, "loss": total / seen,
                                               "gaussians": self.model.count})
-                    bar.update(self.step, info=f"loss {total / seen:.4f} · {self.model.count} Gaussians")
+                    bar.update(self.step, info=f"loss {total / seen:.4f} · {self.model.count} Gaussians{score}")
                     total, seen = 0.0, 0
-                if checkpoint is not None and checkpoint_every and self.step % checkpoint_every == 0:
+                if due:
                     self.save_checkpoint(checkpoint)
         return self.model
 
+    def score_held_out(self) -> float | None:
+        """Score the model as it stands on the dataset's held-out views, as ``dofview train-eval``
+        does (GL render of the exported scene): appended to ``history.scores``; returns the mean
+        log-radiance PSNR (dB), or None without held-out views or a GL renderer (said once)."""
+        if not self.scoring:
+            return None
+        scene = self.model.to_scene("linear" if self.linear else "srgb")
+        try:
+            ev = evaluate(scene, self.dataset)
+        except DofviewError as e:
+            print(f"dofview: no held-out scores at checkpoints: {e}", file=sys.stderr)
+            self.scoring = False
+            return None
+        self.history.scores.append({"step": self.step, "log_psnr": ev.mean_log_psnr,
+                                    "bright_ratio": ev.mean_bright_ratio})
+        return ev.mean_log_psnr
+
     def save_checkpoint(self, path: Path) -> None:
-        """Parameters, Adam state, step, history and random state, written whole or not at all."""
+        """Parameters, Adam state, step, history and scores, random states, densification
+        statistics, and what made it (config, rasteriser), written whole or not at all."""
         data = {"step": self.step, "params": self.model.state(), "optimiser": self.optimiser.state_dict(),
-                "history": self.history.rows, "config": asdict(self.config), "rng": self.rng.bit_generator.state}
+                "history": self.history.rows, "scores": self.history.scores, "config": asdict(self.config),
+                "raster": self.raster, "rng": self.rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
+                "grad_stats": (self.grad_sum.cpu(), self.grad_count.cpu())}
         with atomic_output(path) as tmp:
             torch.save(data, tmp)
 
@@ -266,5 +298,14 @@ class Trainer:
         except ValueError:  # parameter groups differ: written before SH bands were trained
             raise DofviewError(f"{path}: checkpoint is from an older dofview trainer; train afresh") from None
         self.step, self.history.rows = int(data["step"]), list(data["history"])
+        self.history.scores = list(data.get("scores", []))
         self.rng.bit_generator.state = data["rng"]
+        if "torch_rng" in data:  # (older checkpoints: the split samples after resuming differ)
+            torch.set_rng_state(data["torch_rng"])
         self._reset_stats()
+        if "grad_stats" in data:
+            self.grad_sum, self.grad_count = (t.to(self.device) for t in data["grad_stats"])
+        made = data.get("raster")
+        if made is not None and made != self.raster:  # the same model: only the speed (and rounding) differ
+            print(f"dofview: {path} was trained with the {made} rasteriser; going on with {self.raster}",
+                  file=sys.stderr)
