@@ -32,6 +32,9 @@ from dofview.train.exif import write_png_exif
 from dofview.train.points import write_colmap_text
 
 MID_GREY = 0.18
+# What a camera sees: every Gaussian to its 3σ support, no τ cut (a cut darkens faint regions, which
+# a camera would not); the photos, the held-out views, the trainer and the evaluation all use it.
+PHOTO_RENDER = RenderSettings(tau=0.0)
 
 
 @dataclass(frozen=True)
@@ -89,7 +92,7 @@ def orbit(eye: np.ndarray, target: np.ndarray, yaw_deg: float, pitch_deg: float,
 
 
 def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Capture(),
-             eye=None, target=None, render: RenderSettings = RenderSettings(), progress: bool = True,
+             eye=None, target=None, render: RenderSettings = PHOTO_RENDER, progress: bool = True,
              raster: str = "quad") -> Path:
     """Render a dataset of ``scene`` into the new folder ``out_dir`` with backend ``raster``
     (:func:`dofview.rendering.get_backend`); returns its transforms.json.

@@ -24,27 +24,29 @@ import numpy as np
 import torch
 
 from dofview.errors import DofviewError
-from dofview.frame import RenderSettings
 from dofview.io.atomic import atomic_output
 from dofview.lens import Lens
 from dofview.progress import Progress
 from dofview.train.dataset import Dataset, load_photo
 from dofview.train.evaluate import evaluate
+from dofview.train.generate import PHOTO_RENDER
 from dofview.train.losses import aligned_loss, delta, photo_loss, tonemap
 from dofview.train.model import PARAMS, GaussianModel, initial_model
 from dofview.train.raster import rotations
 from dofview.train.rasterisers import RASTERISERS, choose_rasteriser
 
 VARIANTS = ("full", "no-exp", "no-foc", "ldr")
-# The trainer splats with τ = 0 (3σ support): a τ cut would hide faint Gaussians from the gradient.
-TRAIN_RENDER = RenderSettings(tau=0.0)
+# The trainer splats as the photos were taken, τ = 0 (3σ support): a τ cut would also hide faint
+# Gaussians from the gradient.
+TRAIN_RENDER = PHOTO_RENDER
 
 
 @dataclass(frozen=True)
 class TrainConfig:
     """Optimisation settings; learning rates are per step of Adam on the raw parameters.
 
-    ``lr_means`` is relative to the scene's depth extent (far − near, scene units).
+    ``lr_means`` (random start) and ``lr_means_points`` (SfM start) are relative to the scene's depth
+    extent (far − near, scene units).
     """
 
     iterations: int = 2000
@@ -56,7 +58,8 @@ class TrainConfig:
     grad_threshold: float = 2e-4  # mean |∂L/∂mean2d| (loss per pixel of shift) that triggers densification
     prune_opacity: float = 0.01
     split_scale: float = 1.5  # Gaussians wider than this many pixels (at depth 1 scale) are split
-    lr_means: float = 2e-3
+    lr_means: float = 2e-3  # from the random start: its points are off by up to the depth range
+    lr_means_points: float = 1.6e-4  # from SfM points, off by a pixel or so: the reference 3DGS's rate
     lr_log_scales: float = 1e-2
     lr_quats: float = 2e-3
     lr_opacity: float = 5e-2
@@ -131,7 +134,8 @@ class Trainer:
     # ---- optimiser -------------------------------------------------------------------------
     def _lrs(self) -> dict[str, float]:
         c = self.config
-        return {"means": c.lr_means * self.extent, "log_scales": c.lr_log_scales, "quats": c.lr_quats,
+        lr_means = c.lr_means_points if self.dataset.points is not None else c.lr_means
+        return {"means": lr_means * self.extent, "log_scales": c.lr_log_scales, "quats": c.lr_quats,
                 "opacity_logits": c.lr_opacity, "log_colours": c.lr_colours, "sh_rest": c.lr_sh}
 
     def _new_optimiser(self) -> None:
