@@ -60,6 +60,7 @@ def test_checkpoints_record_their_maker_and_held_out_score(dataset, tmp_path, ca
     assert all(5.0 < s["log_psnr"] < 60.0 and s["bright_ratio"] > 0 for s in scores)
     logged = json.loads(log.read_text())
     assert logged["scores"] == scores and logged["raster"] == "native"
+    assert logged["variant"] == data["config"]["variant"] == "no-foc"  # L_foc is off by default
     assert f"held-out log-radiance PSNR {scores[-1]['log_psnr']:.2f} dB at step 30" in err
     assert "(native rasteriser)" in err
     # resumed with another rasteriser: said, and the scores go on from where they were
@@ -81,3 +82,20 @@ def test_eta_of_a_resumed_run_counts_its_own_pace(monkeypatch):
     now[0] = 10.0
     p.update(1600)  # 100 steps in 10 s, 400 to go: 40 s (from step 0 it would say 2.5 s)
     assert out.getvalue() == "training: 1600/2000 (80%, 10.0s, eta 40.0s) \n"
+
+
+def test_without_a_renderer_checkpoints_go_on_unscored(dataset, tmp_path, monkeypatch, capsys):
+    from dofview.errors import BackendUnavailable
+    from dofview.train import optimise
+
+    def no_gl(*args, **kwargs):
+        raise BackendUnavailable("no EGL display")
+
+    monkeypatch.setattr(optimise, "evaluate", no_gl)
+    out = tmp_path / "u.ply"
+    assert main(["train", str(dataset), "-o", str(out), "--iterations", "20", "--warmup", "5", "--gaussians", "30",
+                 "--checkpoint-every", "5"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("no held-out scores at checkpoints: no EGL display") == 1  # said once, not at every checkpoint
+    data = torch.load(out.with_suffix(".ckpt"), weights_only=False)
+    assert data["step"] == 20 and data["scores"] == []

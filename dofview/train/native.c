@@ -246,6 +246,7 @@ int dv_forward(const Splats *s, real *rgb, real *final, int32_t *last) {
 }
 
 #define PAIR_GRAD(C) (6 + (C)) /* ∂ mean (2), conic (3), opacity (1), colour (C) */
+#define MAX_CHANNELS 16       /* colour channels a splat may have (native.py checks) */
 
 static void backward_tile(Job *job, int64_t tile, real *scratch) {
     const Splats *s = job->s;
@@ -253,48 +254,55 @@ static void backward_tile(Job *job, int64_t tile, real *scratch) {
     tile_rect(s, tile, t);
     int64_t begin = s->offsets[tile], n = s->offsets[tile + 1] - begin;
     int64_t tw = t[2] - t[0] + 1, px = s->tile * s->tile;
-    real *trans = scratch, *behind = scratch + px; /* T_(i+1), and B·G of the fragments behind */
+    real *restrict trans = scratch, *restrict behind = scratch + px; /* T_(i+1), and B·G behind */
+    const real *restrict grad_rgb = job->grad_rgb, *restrict grad_alpha = job->grad_alpha;
+    const real *restrict final = job->final_in;
+    const int32_t *restrict last = job->last_in;
     for (int64_t y = t[1]; y <= t[3]; y++)
         for (int64_t x = t[0]; x <= t[2]; x++) {
-            trans[(y - t[1]) * tw + x - t[0]] = job->final_in[y * W + x];
+            trans[(y - t[1]) * tw + x - t[0]] = final[y * W + x];
             behind[(y - t[1]) * tw + x - t[0]] = 0;
         }
     for (int64_t k = n - 1; k >= 0; k--) {
         int64_t g = s->pairs[begin + k];
-        double *acc = job->pair_grad + (begin + k) * PAIR_GRAD(C);
         if (!tile_box(s, g, t, r)) continue;
         const real *col = s->colour + g * C, *cn = s->conic + 3 * g;
         real o = s->opacity[g];
+        /* this pair's sums, in locals (registers) rather than through the pair_grad pointer */
+        double d_mx = 0, d_my = 0, d_a = 0, d_b = 0, d_c = 0, d_o = 0, d_col[MAX_CHANNELS] = {0};
         for (int64_t y = r[1]; y <= r[3]; y++) {
             int64_t xa, xb;
             chord(s, g, y, r[0], r[2], &xa, &xb);
             for (int64_t x = xa; x <= xb; x++) {
                 int64_t p = y * W + x;
-                if (k >= job->last_in[p]) continue; /* not drawn: early stop */
+                if (k >= last[p]) continue; /* not drawn: early stop */
                 real dx, dy, f;
                 real alpha = fragment(s, g, x, y, &dx, &dy, &f);
                 if (!(alpha > 0)) continue;
                 int64_t l = (y - t[1]) * tw + x - t[0];
-                real keep = 1 - alpha, T = trans[l] / keep, w = alpha * T, cg = 0;
-                const real *G = job->grad_rgb + p * C;
+                real inv = 1 / (1 - alpha), T = trans[l] * inv, w = alpha * T, cg = 0;
+                const real *G = grad_rgb + p * C;
                 for (int64_t c = 0; c < C; c++) {
                     cg += col[c] * G[c];
-                    acc[6 + c] += w * G[c];
+                    d_col[c] += w * G[c];
                 }
-                real d_alpha = T * cg - (behind[l] - job->grad_alpha[p] * job->final_in[p]) / keep;
+                real d_alpha = T * cg - (behind[l] - grad_alpha[p] * final[p]) * inv;
                 behind[l] += cg * w;
                 trans[l] = T;
                 if (f > 0) {
                     real d_q = (real)-0.5 * d_alpha * f * o;
-                    acc[0] += -2 * d_q * (cn[0] * dx + cn[1] * dy);
-                    acc[1] += -2 * d_q * (cn[1] * dx + cn[2] * dy);
-                    acc[2] += d_q * dx * dx;
-                    acc[3] += 2 * d_q * dx * dy;
-                    acc[4] += d_q * dy * dy;
-                    acc[5] += d_alpha * f;
+                    d_mx += -2 * d_q * (cn[0] * dx + cn[1] * dy);
+                    d_my += -2 * d_q * (cn[1] * dx + cn[2] * dy);
+                    d_a += d_q * dx * dx;
+                    d_b += 2 * d_q * dx * dy;
+                    d_c += d_q * dy * dy;
+                    d_o += d_alpha * f;
                 }
             }
         }
+        double *acc = job->pair_grad + (begin + k) * PAIR_GRAD(C);
+        acc[0] = d_mx, acc[1] = d_my, acc[2] = d_a, acc[3] = d_b, acc[4] = d_c, acc[5] = d_o;
+        for (int64_t c = 0; c < C; c++) acc[6 + c] = d_col[c];
     }
 }
 

@@ -35,6 +35,7 @@ SOURCE = Path(__file__).with_name("native.c")
 # -march=native: the build is keyed by the CPU's flags, so a cached library never meets another CPU
 FLAGS = ("-O3", "-march=native", "-std=c11", "-shared", "-fPIC", "-pthread")
 REALS = {torch.float32: "float", torch.float64: "double"}
+MAX_CHANNELS = 16  # native.c's MAX_CHANNELS
 
 
 class NativeUnavailable(DofviewError):
@@ -134,8 +135,8 @@ class _NativeComposite(torch.autograd.Function):
                 threads: int):
         lib, splats = library(mean2d.dtype)
         arrays = [t.detach().contiguous() for t in (mean2d, conic, opacity, colour, support, lo, hi)]
-        if any(a.device.type != "cpu" or a.dtype != mean2d.dtype for a in arrays):
-            raise ValueError("the native rasteriser takes CPU tensors of one dtype")
+        if any(a.device.type != "cpu" or a.dtype != mean2d.dtype for a in arrays) or colour.shape[1] > MAX_CHANNELS:
+            raise ValueError(f"the native rasteriser takes CPU tensors of one dtype, ≤ {MAX_CHANNELS} colour channels")
         s = splats(len(mean2d), *map(_ptr, arrays), colour.shape[1], width, height, TILE, threads,
                        tau, ALPHA_MAX, SUPPORT_MAX, EARLY_STOP)
         tiles = -(-width // TILE) * -(-height // TILE)
