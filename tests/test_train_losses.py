@@ -36,7 +36,7 @@ def test_warm_up_loss_reads_black_and_saturated_pixels_as_bounds():
         hdr = torch.tensor([[radiance]], dtype=torch.float32, requires_grad=True)
         value = aligned_loss(hdr, photo, exposure, key, gamma)
         value.backward()
-        return float(value), hdr.grad[0, 0].tolist()
+        return float(value.detach()), hdr.grad[0, 0].tolist()
 
     bound = (0.5 / 255) ** gamma / exposure  # the black pixel's largest radiance
     sat = (254.5 / 255) ** gamma / exposure  # the saturated pixel's smallest

@@ -163,6 +163,7 @@ def points_start(dataset: Dataset, photos: list[np.ndarray], linear: bool, rng: 
     own = np.full((len(means), 3), 0.5) if points.colours is None else points.colours[keep].astype(np.float64)
     own = own ** dataset.gamma / dataset.key_exposure() if linear else own
     colours = np.where(np.isnan(colours), own, colours)
-    sizes = nearest_distance(means) if len(means) > 1 else np.array([1.5 * np.linalg.norm(
-        means[0] - dataset.shots[0].camera.centre) / dataset.shots[0].camera.fx])
-    return means, colours, sizes
+    if len(means) > 1:
+        return means, colours, nearest_distance(means)
+    cam = dataset.shots[0].camera  # a lone point has no neighbours: the random start's size, a pixel and a half
+    return means, colours, np.array([1.5 * np.linalg.norm(means[0] - cam.centre) / cam.fx])

@@ -123,8 +123,8 @@ def default_threads() -> int:
         return os.cpu_count() or 1
 
 
-def _ptr(t: torch.Tensor) -> int:
-    return t.data_ptr()
+def _ptr(t: torch.Tensor) -> ctypes.c_void_p:
+    return ctypes.c_void_p(t.data_ptr())
 
 
 class _NativeComposite(torch.autograd.Function):
@@ -133,23 +133,25 @@ class _NativeComposite(torch.autograd.Function):
     @staticmethod
     def forward(ctx, mean2d, conic, opacity, colour, support, lo, hi, width: int, height: int, tau: float,
                 threads: int):
-        lib, splats = library(mean2d.dtype)
         arrays = [t.detach().contiguous() for t in (mean2d, conic, opacity, colour, support, lo, hi)]
-        if any(a.device.type != "cpu" or a.dtype != mean2d.dtype for a in arrays) or colour.shape[1] > MAX_CHANNELS:
-            raise ValueError(f"the native rasteriser takes CPU tensors of one dtype, ≤ {MAX_CHANNELS} colour channels")
-        s = splats(len(mean2d), *map(_ptr, arrays), colour.shape[1], width, height, TILE, threads,
-                       tau, ALPHA_MAX, SUPPORT_MAX, EARLY_STOP)
+        if (mean2d.dtype not in REALS or any(a.device.type != "cpu" or a.dtype != mean2d.dtype for a in arrays)
+                or colour.shape[1] > MAX_CHANNELS):
+            raise ValueError(f"the native rasteriser takes CPU tensors, all float32 or all float64, and ≤ "
+                             f"{MAX_CHANNELS} colour channels")
+        lib, splats = library(mean2d.dtype)
+        s = splats(len(mean2d), *(a.data_ptr() for a in arrays), colour.shape[1], width, height, TILE, threads,
+                   tau, ALPHA_MAX, SUPPORT_MAX, EARLY_STOP)
         tiles = -(-width // TILE) * -(-height // TILE)
         offsets = torch.empty(tiles + 1, dtype=torch.int64)
-        pairs = torch.empty(lib.dv_bin_count(ctypes.byref(s), ctypes.c_void_p(offsets.data_ptr())), dtype=torch.int32)
+        pairs = torch.empty(lib.dv_bin_count(ctypes.byref(s), _ptr(offsets)), dtype=torch.int32)
         s.offsets, s.pairs = offsets.data_ptr(), pairs.data_ptr()
         cursor = torch.empty(tiles, dtype=torch.int64)
-        lib.dv_bin_fill(ctypes.byref(s), ctypes.c_void_p(pairs.data_ptr()), ctypes.c_void_p(cursor.data_ptr()))
+        lib.dv_bin_fill(ctypes.byref(s), _ptr(pairs), _ptr(cursor))
         n = width * height
         rgb = torch.zeros(n, colour.shape[1], dtype=colour.dtype)
         final = torch.empty(n, dtype=colour.dtype)
         last = torch.empty(n, dtype=torch.int32)
-        if lib.dv_forward(ctypes.byref(s), *(ctypes.c_void_p(_ptr(t)) for t in (rgb, final, last))):
+        if lib.dv_forward(ctypes.byref(s), *map(_ptr, (rgb, final, last))):
             raise MemoryError("native rasteriser: out of memory or threads")
         ctx.keep = (s, arrays, offsets, pairs, final, last)  # s points into the others: they live with it
         return rgb, 1.0 - final
@@ -160,7 +162,7 @@ class _NativeComposite(torch.autograd.Function):
         lib = library(final.dtype).lib
         grads = [torch.zeros_like(a) for a in arrays[:4]]
         inputs = [grad_rgb.to(final.dtype).contiguous(), grad_alpha.to(final.dtype).contiguous(), final, last]
-        if lib.dv_backward(ctypes.byref(s), *(ctypes.c_void_p(_ptr(t)) for t in inputs + grads)):
+        if lib.dv_backward(ctypes.byref(s), *map(_ptr, inputs + grads)):
             raise MemoryError("native rasteriser: out of memory or threads")
         return (*grads, None, None, None, None, None, None, None)
 
