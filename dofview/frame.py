@@ -39,9 +39,10 @@ class RenderSettings:
             or "disk" (the same ellipse with the radial profile of a Gaussian spread over a disk of
             radius 2·sqrt(k)·R, the thin lens's circle of confusion at k = 1/4); "disk" works with the
             "drop" cut only.
-        dof: how depth of field is made: "splat" blurs each splat (k, the kernel, the opacity
-            normalisation), "sliced" blends depth slices as a pinhole and blurs each slice with the
-            aperture (rendering/sliced.py; the settings above then apply to its huge-CoC layers only).
+        dof: how depth of field is made: "sliced" (the default) blends depth slices as a pinhole
+            and blurs each with the aperture (rendering/sliced.py; k, the kernel, the opacity
+            normalisation and the cut then apply to its huge-CoC layers only); "splat" blurs each
+            splat (k, the kernel, the opacity normalisation), the published single pass.
         blades: aperture of the sliced mode: 0 a disk, n ≥ 3 a regular n-gon.
         blade_rotation: the polygon's first corner, degrees from +x (image right).
     """
@@ -53,7 +54,7 @@ class RenderSettings:
     near: float = 0.01
     cut: str = "drop"  # "conserve" wins on one real scene of five: docs/BENCHMARKS.md, real scenes
     kernel: str = "gaussian"  # "disk": docs/BENCHMARKS.md, "A disk-shaped kernel"
-    dof: str = "splat"
+    dof: str = "sliced"  # docs/BENCHMARKS.md, "Sliced depth of field"
     blades: int = 0
     blade_rotation: float = 0.0
 
@@ -86,7 +87,8 @@ class RenderSettings:
     @classmethod
     def from_dict(cls, d: dict[str, object]) -> "RenderSettings":
         """The settings of :meth:`to_dict`; a missing entry takes its default (headers written
-        before ``near`` was recorded).
+        before ``near`` was recorded), but a missing ``dof`` is "splat": the one mode of the
+        headers written before it was recorded.
 
         Raises:
             DofviewError: an unknown entry, or a value out of range, named.
@@ -96,13 +98,14 @@ class RenderSettings:
         if unknown:
             raise DofviewError(f"render settings: unknown entry {unknown[0]!r}")
         cast = {"float": float, "bool": bool, "str": str, "int": int}  # the fields' annotations, as text
-        return cls(**{k: cast[names[k].type](v) for k, v in d.items()})  # type: ignore[index]
+        given = {"dof": "splat", **d}
+        return cls(**{k: cast[names[k].type](v) for k, v in given.items()})  # type: ignore[index]
 
     def to_args(self) -> list[str]:
         """``dofview render`` arguments that give these settings (full float precision)."""
         args = ["--tau", repr(float(self.tau)), "--k", repr(float(self.k)), "--opacity-norm", self.opacity_norm,
                 "--cut", self.cut, "--kernel", self.kernel, "--near", repr(float(self.near))]
-        if self.dof != "splat":
+        if self.dof != "sliced":
             args += ["--dof", self.dof]
         if self.blades:
             args += ["--blades", str(self.blades), "--blade-rotation", repr(float(self.blade_rotation))]

@@ -181,7 +181,7 @@ def settings_from_args(args: argparse.Namespace) -> RenderSettings:
     """The splatting options (--tau, --k, --opacity-norm, --cut, --kernel, --near, --blend-linear,
     --dof, --blades, --blade-rotation)."""
     if (args.blades or args.blade_rotation) and args.dof != "sliced":
-        raise DofviewError("--blades and --blade-rotation shape the aperture of --dof sliced; add --dof sliced")
+        raise DofviewError("--blades and --blade-rotation shape the aperture of --dof sliced; --dof splat has none")
     return RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm,
                           blend_linear=args.blend_linear, near=args.near, cut=args.cut, kernel=args.kernel,
                           dof=args.dof, blades=int(args.blades), blade_rotation=args.blade_rotation)

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# Issue 12's GPU measurements in one prepared run, for a session lent an NVIDIA GPU (the figures on
-# llvmpipe are in docs/BENCHMARKS.md "Compute backend"; the GPU table there stays open until this
-# has run). Measures, at 1200×675, 1M and 3M random Gaussians (bench.synth.random_scene, SH 0),
-# A ∈ {0, 50, 100}: whole frames during an orbit (every frame sorts: the quad backend on the CPU
-# plus an upload, the compute backend on the GPU) → median / p90 / p99 ms and FPS per backend, the
-# renderer's GPU bytes, and the peak GPU memory seen by nvidia-smi; then the compute backend's
-# tile / pixels-per-thread variants at 1M. Everything goes to $OUT (default ./gpu_bench_out) as
-# JSON, PNG and logs. Run from the repository root: OUT=/some/dir scripts/gpu_bench.sh
+# Issues 12 and 23's GPU measurements in one prepared run, for a session lent an NVIDIA GPU (the
+# figures on llvmpipe are in docs/BENCHMARKS.md "Compute backend" and "Sliced depth of field"; the
+# GPU tables there stay open until this has run). Measures, at 1200×675, 1M and 3M random Gaussians
+# (bench.synth.random_scene, SH 0), A ∈ {0, 50, 100}, for each depth-of-field mode (sliced, the
+# default, and per-splat): whole frames during an orbit (every frame sorts: the quad backend on the
+# CPU plus an upload, the compute backend on the GPU) → median / p90 / p99 ms and FPS per backend,
+# the renderer's GPU bytes, and the peak GPU memory seen by nvidia-smi; then the compute backend's
+# tile / pixels-per-thread variants at 1M (per-splat). Everything goes to $OUT (default
+# ./gpu_bench_out) as JSON, PNG and logs. Run from the repository root: OUT=/some/dir scripts/gpu_bench.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-gpu_bench_out}
@@ -26,12 +27,14 @@ python -c "from dofview.rendering.gl import headless_context as h; c = h(); prin
 MONITOR=$!
 trap 'kill $MONITOR 2>/dev/null || true' EXIT
 
-python -m dofview.bench.backends --sizes "$SIZES" --apertures 0,50,100 --frames "$FRAMES" --width 1200 --height 675 \
-  --no-samples --json "$OUT/backends.json" --plot "$OUT/backends.png" > "$OUT/backends.log" 2>&1
+for dof in sliced splat; do
+  python -m dofview.bench.backends --sizes "$SIZES" --apertures 0,50,100 --frames "$FRAMES" --width 1200 --height 675 \
+    --no-samples --dof "$dof" --json "$OUT/backends_$dof.json" --plot "$OUT/backends_$dof.png" > "$OUT/backends_$dof.log" 2>&1
+done
 
 for variant in 16,1 16,2 8,1 32,2; do
   python -m dofview.bench.backends --sizes "${SIZES%%,*}" --apertures 0,100 --frames "$FRAMES" --width 1200 --height 675 \
-    --no-samples --compute-tile "$variant" --json "$OUT/compute_tile_${variant/,/x}.json" \
+    --no-samples --dof splat --compute-tile "$variant" --json "$OUT/compute_tile_${variant/,/x}.json" \
     > "$OUT/compute_tile_${variant/,/x}.log" 2>&1 || echo "variant $variant failed (see its log)" >> "$OUT/errors.txt"
 done
 
@@ -47,11 +50,11 @@ for f in sorted(out.glob("*.json")):
     if f.name == "summary.json":
         continue
     for r in json.loads(f.read_text())["rows"]:
-        summary["rows"].append({"file": f.name, **{k: r[k] for k in ("scene", "backend", "aperture", "median_ms", "p90_ms",
-                                                                   "p99_ms", "fps", "ratio", "gpu_bytes", "pairs")}})
+        summary["rows"].append({"file": f.name, **{k: r[k] for k in ("scene", "backend", "dof", "aperture", "median_ms",
+                                                                   "p90_ms", "p99_ms", "fps", "ratio", "gpu_bytes", "pairs")}})
 (out / "summary.json").write_text(json.dumps(summary, indent=1))
 for r in summary["rows"]:
-    print(f"{r['file']:28s} {r['scene']:12s} {r['backend']:8s} A={r['aperture']:5g} {r['median_ms']:8.2f} ms "
+    print(f"{r['file']:28s} {r['scene']:12s} {r['backend']:8s} {r['dof']:7s} A={r['aperture']:5g} {r['median_ms']:8.2f} ms "
           f"p99 {r['p99_ms']:8.2f} ms {r['fps']:7.1f} FPS ×{r['ratio']:.2f}")
 print("peak GPU memory used (MiB):", summary["peak_gpu_memory_used_mib"])
 PY

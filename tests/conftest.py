@@ -77,6 +77,21 @@ def assert_matches_reference(gl, reference, min_psnr=45.0, depth_rtol=1e-3, max_
     assert rel.max() <= depth_rtol
 
 
+def assert_matches_sliced_reference(gl, ref, min_psnr=45.0, depth_rtol=1e-3):
+    """The sliced mode against rendering.reference.render_reference_sliced: linear image PSNR ≥
+    45 dB (peak as assert_matches_reference) and depth within 1e-3 relative on 99 % of the pixels
+    the reference has a depth for (the sliced mode's depth is its layers' pinhole depth, drawn
+    wherever the pinhole drew; the reference marks no near-cut pixels for it, where a float32 coin
+    flip at a cut can land elsewhere)."""
+    assert np.all(np.isfinite(gl.rgba)) and np.all(np.isfinite(gl.depth))
+    peak = max(float(ref.rgba.max()), 1.0)
+    assert psnr(gl.rgba, ref.rgba, peak) >= min_psnr
+    covered = ref.depth > 0
+    if covered.any():
+        rel = np.abs(gl.depth[covered] - ref.depth[covered]) / ref.depth[covered]
+        assert np.mean(rel <= depth_rtol) >= 0.99
+
+
 @pytest.fixture
 def small_scene() -> GaussianScene:
     return random_scene()

@@ -73,7 +73,7 @@ def test_quad_fragment_estimate_draws_what_the_shader_draws():
     r = QuadBackend(scene)
     quads = {}
     for a, tau in ((0.0, 0.0), (60.0, 0.0), (60.0, 2 / 255)):
-        st = RenderSettings(tau=tau)
+        st = RenderSettings(tau=tau, dof="splat")
         r.draw(cam, Lens(4.0, a), st, count=True)
         drawn, quad, ellipse = quad_fragments(scene, cam, Lens(4.0, a), st)
         assert abs(drawn - r.stats.drawn) <= 0.002 * r.stats.drawn
@@ -114,7 +114,8 @@ def test_quick_run_writes_every_output(quick_run):
         assert w > 100 and h > 100
     report = (quick_run / "report.md").read_text()
     for heading in ("## Frame time, A × τ", "## Targets", "## Error against the thin-lens reference",
-                    "### k × opacity normalisation", "### τ: error added", "### Blend colour space", "## Scaling"):
+                    "### Per-splat mode, k × opacity normalisation", "### Per-splat mode, τ: error added",
+                    "### Per-splat mode, blend colour space", "## Scaling"):
         assert heading in report
     targets = report.split("## Targets")[1].split("\n## ")[0].strip().splitlines()
     assert targets and all(t.startswith("- ") and ("**met**" in t or "**missed**" in t) for t in targets)
@@ -262,7 +263,8 @@ def test_target_lines_say_met_or_missed():
 
     base = RenderSettings()
     cfg = BenchConfig(apertures=(30.0,), grid_apertures=(0.0, 30.0), taus=(0.0, base.tau))
-    cols = {"tau": base.tau, "k": base.k, "opacity_norm": base.opacity_norm, "blend_linear": base.blend_linear}
+    cols = {"tau": base.tau, "k": base.k, "opacity_norm": base.opacity_norm, "blend_linear": base.blend_linear,
+            "dof": base.dof}
     errs = [{"aperture": 30.0, "method": "single-pass", "samples": 1, **cols, "psnr": 30.0, "psnr_physical": 24.0,
              "time_ms": 10.0}]
     errs += [{"aperture": 30.0, "method": "accumulation", "samples": n, **cols, "psnr": p, "psnr_physical": p,

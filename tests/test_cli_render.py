@@ -90,7 +90,7 @@ def test_hdr_sample_needs_exposure(tmp_path):
     (["--tau", "1"], "tau must be in [0, 1)"),
     (["--view", "nope"], "no camera named 'nope'"),
     (["--fnumber", "2"], "needs both --fnumber and --focal-mm"),
-    (["--blades", "6"], "shape the aperture of --dof sliced"),
+    (["--blades", "6", "--dof", "splat"], "shape the aperture of --dof sliced"),
 ])
 def test_bad_arguments_exit_2_with_one_line(tmp_path, argv, needle):
     out = tmp_path / "x.exr"

@@ -63,7 +63,7 @@ def test_preprocess_stage_matches_reference_projection(kernel):
     """The per-Gaussian records read back (centre, blurred covariance with the CoC, o′, depth, kernel
     shape) against rendering.reference.project, in float64, for every Gaussian the kernel kept."""
     scene = random_scene(degree=1, seed=12)
-    settings = RenderSettings(tau=1 / 255, kernel=kernel)
+    settings = RenderSettings(tau=1 / 255, kernel=kernel, dof="splat")
     lens = Lens(4.0, 70.0)
     r = ComputeBackend(scene, packed=False)
     r.draw(CAM, lens, settings)
@@ -123,7 +123,7 @@ def test_splat_on_a_tile_corner_has_no_seam(aperture):
     x, y = 2 * t, 2 * t  # a tile corner, in pixels (y down)
     scene = _one([(x - cam.cx) / 100.0, (y - cam.cy) / 100.0, 1.0], [0.03, 0.02, 0.01], opacity=0.99)
     r = ComputeBackend(scene, packed=False)
-    lens, settings = Lens(2.0, aperture), RenderSettings(tau=0.0)
+    lens, settings = Lens(2.0, aperture), RenderSettings(tau=0.0, dof="splat")
     frame = r.render(cam, lens, settings)
     assert r.pairs >= 4
     assert_same_image(frame, render_reference(scene, cam, lens, settings), min_db=60.0)
@@ -179,14 +179,18 @@ def test_more_than_65k_splats_in_one_tile():
     assert_same_image(c.read(), QuadBackend(scene).render(cam, lens))
 
 
-def test_depth_slices_give_the_same_image():
-    """A frame whose pairs exceed max_pairs is drawn in depth slices, continuing the blend."""
+@pytest.mark.parametrize("dof", ["splat", "sliced"])
+def test_depth_slices_give_the_same_image(dof):
+    """A frame whose pairs exceed max_pairs is drawn in depth slices, continuing the blend (in the
+    sliced mode each of its layers binned on its own, where one binning holds them all)."""
     scene = random_scene(seed=8)
-    lens = Lens(4.0, 60.0)
-    whole = ComputeBackend(scene).render(CAM, lens)
-    sliced = ComputeBackend(scene, max_pairs=1000)
-    frame = sliced.render(CAM, lens)
-    assert sliced.slices > 3
+    lens, settings = Lens(4.0, 60.0), RenderSettings(dof=dof)
+    whole = ComputeBackend(scene).render(CAM, lens, settings)
+    parts = ComputeBackend(scene, max_pairs=1000)
+    frame = parts.render(CAM, lens, settings)
+    assert parts.pairs > 3000
+    if dof == "splat":
+        assert parts.slices > 3
     assert_same_image(frame, whole, min_db=80.0)
 
 

@@ -9,8 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import psnr, random_scene
-from test_renderer import assert_matches_reference
+from conftest import assert_matches_reference, assert_matches_sliced_reference, psnr, random_scene
 
 from dofview.camera import look_at
 from dofview.errors import DofviewError
@@ -20,7 +19,7 @@ from dofview.io.ply import read_ply, scene_rows, write_ply
 from dofview.io.png import read_png
 from dofview.lens import Lens, PhysicalLens
 from dofview.rendering.quad import QuadBackend
-from dofview.rendering.reference import project, render_reference
+from dofview.rendering.reference import project, render_reference, render_reference_sliced
 from dofview.scene import SH_C0, GaussianScene
 
 CAM = look_at([0, 0, 0], [0, 0, 5], 64, 48, 60)
@@ -47,12 +46,20 @@ def check(scene, lens=Lens(4.0, 0.0), settings=RenderSettings(), cam=CAM, packed
     against float32 storage at the packing's own bar (PSNR ≥ 50 dB, test_packing.py). Returns the
     GL frame in the layout asked for."""
     gl = QuadBackend(scene, packed=False).render(cam, lens, settings)
-    ref = render_reference(scene, cam, lens, settings, margins=True)
-    if ref[0].alpha.max() > 0.5:
-        assert_matches_reference(gl, ref)
+    if settings.dof == "sliced":
+        ref = render_reference_sliced(scene, cam, lens, settings)
+        if ref.alpha.max() > 0.5:
+            assert_matches_sliced_reference(gl, ref)
+        else:
+            assert np.isfinite(gl.rgba).all() and np.isfinite(gl.depth).all()
+            assert psnr(gl.rgba, ref.rgba, max(float(ref.rgba.max()), 1.0)) >= 45.0
     else:
-        assert np.isfinite(gl.rgba).all() and np.isfinite(gl.depth).all()
-        assert psnr(gl.rgba, ref[0].rgba, max(float(ref[0].rgba.max()), 1.0)) >= 45.0
+        ref = render_reference(scene, cam, lens, settings, margins=True)
+        if ref[0].alpha.max() > 0.5:
+            assert_matches_reference(gl, ref)
+        else:
+            assert np.isfinite(gl.rgba).all() and np.isfinite(gl.depth).all()
+            assert psnr(gl.rgba, ref[0].rgba, max(float(ref[0].rgba.max()), 1.0)) >= 45.0
     if not packed:
         return gl
     small = QuadBackend(scene, packed=True).render(cam, lens, settings)
@@ -156,8 +163,9 @@ def test_opacity_exactly_0_or_1(norm, packed):
     means, q = cloud(200, seed=9)
     scene = scene_of(means, 0.1, q, opacities=np.where(np.arange(200) % 2, 1.0, 0.0))
     for lens in (Lens(4.0, 0.0), Lens(3.0, 80.0)):
-        gl = check(scene, lens, RenderSettings(opacity_norm=norm), packed=packed)
-        assert gl.alpha.max() <= 1.0
+        for dof in ("sliced", "splat"):  # the normalisation shapes the per-splat blur
+            gl = check(scene, lens, RenderSettings(opacity_norm=norm, dof=dof), packed=packed)
+            assert gl.alpha.max() <= 1.0
 
 
 # ---- lens -----------------------------------------------------------------------------------------
@@ -166,7 +174,7 @@ def test_focus_in_front_of_at_and_far_beyond_all_content(focus):
     """Content spans z 4…6 and near = 0.01: focus below the near plane, in front, inside, beyond, ∞."""
     means, q = cloud(200, seed=10)
     scene = scene_of(means, 0.08, q)
-    for settings in (RenderSettings(tau=0.0), RenderSettings(tau=2 / 255)):
+    for settings in (RenderSettings(tau=0.0), RenderSettings(tau=2 / 255), RenderSettings(dof="splat")):
         check(scene, Lens(focus, 40.0), settings)
 
 
@@ -190,9 +198,9 @@ def test_focus_at_infinity_is_the_limit_of_far_focus():
     check(scene, Lens(math.inf, 60.0))
 
 
-@pytest.mark.parametrize("settings", [RenderSettings(), RenderSettings(tau=0.0),
-                                      RenderSettings(opacity_norm="optical-depth", k=1.0),
-                                      RenderSettings(opacity_norm="none", blend_linear=True)])
+@pytest.mark.parametrize("settings", [RenderSettings(), RenderSettings(tau=0.0), RenderSettings(dof="splat"),
+                                      RenderSettings(opacity_norm="optical-depth", k=1.0, dof="splat"),
+                                      RenderSettings(opacity_norm="none", blend_linear=True, dof="splat")])
 def test_aperture_zero_is_bit_equal_to_the_pinhole_for_any_focus(settings):
     """Extends test_renderer's check to every setting and to focus distances whose inverse
     overflows float32 (1e-39: the uniform 1/d_f would be inf, and 0·inf a NaN blur)."""
@@ -335,16 +343,18 @@ def test_one_gaussian():
 
 
 def test_all_gaussians_culled_give_an_empty_image():
-    """All behind the camera, all off screen, or all blurred below τ: nothing is drawn."""
+    """All behind the camera, all off screen, or (the per-splat mode) all blurred below τ: nothing
+    is drawn. (The sliced mode draws the last as a pinhole and spreads its light: test_renderer.)"""
     means, q = cloud(100, seed=16)
-    for scene, lens in ((scene_of(means * [1, 1, -1], 0.1, q), Lens(4.0, 0.0)),
-                        (scene_of(means + [40.0, 0, 0], 0.1, q), Lens(4.0, 0.0)),
-                        (scene_of(means, 0.05, q, opacities=0.5), Lens(0.5, 2000.0))):
+    for scene, lens, settings in ((scene_of(means * [1, 1, -1], 0.1, q), Lens(4.0, 0.0), RenderSettings()),
+                                  (scene_of(means + [40.0, 0, 0], 0.1, q), Lens(4.0, 0.0), RenderSettings()),
+                                  (scene_of(means, 0.05, q, opacities=0.5), Lens(0.5, 2000.0),
+                                   RenderSettings(dof="splat"))):
         r = QuadBackend(scene)
-        r.draw(CAM, lens, count=True)
+        r.draw(CAM, lens, settings, count=True)
         assert r.stats.drawn == 0
         assert_finite_and_empty(r.read())
-        assert_finite_and_empty(render_reference(scene, CAM, lens))
+        assert_finite_and_empty(render_reference(scene, CAM, lens, settings))
 
 
 # ---- output sizes -----------------------------------------------------------------------------------

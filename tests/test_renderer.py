@@ -2,14 +2,14 @@
 
 import numpy as np
 import pytest
-from conftest import assert_matches_reference, psnr, random_scene
+from conftest import assert_matches_reference, assert_matches_sliced_reference, psnr, random_scene
 
 from dofview.camera import look_at
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.accumulate import accumulate
 from dofview.rendering.quad import QuadBackend
-from dofview.rendering.reference import render_reference
+from dofview.rendering.reference import render_reference, render_reference_sliced
 from dofview.scene import GaussianScene
 from dofview.tonemap import OPERATORS, Tonemap, display, to_uint8
 
@@ -20,15 +20,19 @@ CAM = look_at([0.2, -0.1, 0.0], [0.0, 0.0, 5.0], 96, 72, 60)
 @pytest.mark.parametrize("degree", [0, 1, 2, 3])
 @pytest.mark.parametrize("aperture", [0.0, 30.0, 120.0])
 @pytest.mark.parametrize("tau", TAUS)
-def test_gl_matches_cpu_reference(backend, degree, aperture, tau):
-    """The renderer's math, in its float32 storage layout, against the float64 reference.
-    (The packed layout's own error is measured against this one in test_packing.py.)"""
+@pytest.mark.parametrize("dof", ["sliced", "splat"])
+def test_gl_matches_cpu_reference(backend, degree, aperture, tau, dof):
+    """The renderer's math, in its float32 storage layout, against the float64 reference of each
+    depth-of-field mode. (The packed layout's own error is measured against this one in
+    test_packing.py.)"""
     scene = random_scene(degree=degree, seed=degree)
-    settings = RenderSettings(tau=tau)
+    settings = RenderSettings(tau=tau, dof=dof)
     lens = Lens(focus=4.5, aperture=aperture)
     gl = backend(scene, packed=False).render(CAM, lens, settings)
-    ref = render_reference(scene, CAM, lens, settings, margins=True)
-    assert_matches_reference(gl, ref)
+    if dof == "sliced":
+        assert_matches_sliced_reference(gl, render_reference_sliced(scene, CAM, lens, settings))
+    else:
+        assert_matches_reference(gl, render_reference(scene, CAM, lens, settings, margins=True))
 
 
 @pytest.mark.parametrize("norm", ["none", "energy", "optical-depth"])
@@ -36,7 +40,7 @@ def test_gl_matches_cpu_reference(backend, degree, aperture, tau):
 @pytest.mark.parametrize("cut", ["drop", "conserve"])
 def test_gl_matches_reference_for_every_option(backend, norm, blend_linear, cut):
     scene = random_scene(seed=7, colour_space="srgb")
-    settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear, cut=cut)
+    settings = RenderSettings(tau=1 / 255, k=1 / 9, opacity_norm=norm, blend_linear=blend_linear, cut=cut, dof="splat")
     lens = Lens(focus=3.0, aperture=80.0)
     assert_matches_reference(backend(scene, packed=False).render(CAM, lens, settings), render_reference(scene, CAM, lens, settings, margins=True))
 
@@ -48,20 +52,27 @@ def test_gl_matches_reference_with_the_disk_kernel(backend, tau, aperture, norm)
     """The disk kernel (RenderSettings.kernel): its profile, area-ratio opacity and τ-tight support
     in lens.glsl against the float64 twin in lens.py."""
     scene = random_scene(degree=1, seed=5)
-    settings = RenderSettings(tau=tau, kernel="disk", opacity_norm=norm)
+    settings = RenderSettings(tau=tau, kernel="disk", opacity_norm=norm, dof="splat")
     lens = Lens(focus=4.5, aperture=aperture)
     gl = backend(scene, packed=False).render(CAM, lens, settings)
     assert_matches_reference(gl, render_reference(scene, CAM, lens, settings, margins=True))
 
 
-def test_linear_hdr_scene_matches_reference(backend):
+@pytest.mark.parametrize("dof", ["sliced", "splat"])
+def test_linear_hdr_scene_matches_reference(backend, dof):
     scene = random_scene(seed=3, colour_space="linear")
     scene.sh_dc *= 40.0  # radiance far above 1
     lens = Lens(focus=6.0, aperture=50.0)
-    gl = backend(scene, packed=False).render(CAM, lens)
-    ref = render_reference(scene, CAM, lens, margins=True)
-    assert ref[0].rgba.max() > 10
-    assert_matches_reference(gl, ref)
+    settings = RenderSettings(dof=dof)
+    gl = backend(scene, packed=False).render(CAM, lens, settings)
+    if dof == "sliced":
+        ref = render_reference_sliced(scene, CAM, lens, settings)
+        assert ref.rgba.max() > 10
+        assert_matches_sliced_reference(gl, ref)
+    else:
+        ref = render_reference(scene, CAM, lens, settings, margins=True)
+        assert ref[0].rgba.max() > 10
+        assert_matches_reference(gl, ref)
 
 
 def test_aperture_zero_is_the_pinhole_image_at_any_focus():
@@ -73,15 +84,17 @@ def test_aperture_zero_is_the_pinhole_image_at_any_focus():
         np.testing.assert_array_equal(again.rgba, pinhole.rgba)
 
 
-def test_focus_plane_stays_sharp_and_blur_grows_away_from_it():
+@pytest.mark.parametrize("dof", ["sliced", "splat"])
+def test_focus_plane_stays_sharp_and_blur_grows_away_from_it(dof):
     """Two small Gaussians at z = 3 and z = 6; focusing on one keeps it (nearly) as in the pinhole."""
     scene = GaussianScene(means=[[-0.6, 0, 3.0], [1.7, 0, 6.0]], quats=[[1, 0, 0, 0]] * 2,
                           scales=[[0.01] * 3] * 2, opacities=[0.9, 0.9], sh_dc=[[1, 1, 1]] * 2)
     r = QuadBackend(scene)
     cam = look_at([0, 0, 0], [0, 0, 1], 128, 64, 60)
-    pin = r.render(cam, Lens(3.0, 0.0), RenderSettings(tau=0)).alpha
-    near_focus = r.render(cam, Lens(3.0, 200.0), RenderSettings(tau=0)).alpha
-    left, right = slice(0, 64), slice(64, 128)
+    pin = r.render(cam, Lens(3.0, 0.0), RenderSettings(tau=0, dof=dof)).alpha
+    near_focus = r.render(cam, Lens(3.0, 200.0), RenderSettings(tau=0, dof=dof)).alpha
+    # the far one's disk (17 px about x = 95), blurred at 1/8 resolution in the sliced mode, reaches x ≈ 62
+    left, right = slice(0, 48), slice(64, 128)
     np.testing.assert_allclose(near_focus[:, left], pin[:, left], atol=1e-6)
     # the far one spreads: its peak drops and its footprint widens
     assert near_focus[:, right].max() < 0.5 * pin[:, right].max()
@@ -95,7 +108,7 @@ def test_single_gaussian_blur_matches_thin_lens_second_moment():
                           opacities=[0.3], sh_dc=[[1, 1, 1]])
     cam = look_at([0, 0, 0], [0, 0, 1], 97, 97, 60)
     r = QuadBackend(scene)
-    settings = RenderSettings(tau=0.0)
+    settings = RenderSettings(tau=0.0, dof="splat")
     lens = Lens(focus=4.0, aperture=64.0)  # R = ½·64·|1/2 − 1/4| = 8 px
     single = r.render(cam, lens, settings).alpha
     acc = accumulate(lambda c: r.render(c, Lens(lens.focus, 0.0), settings), cam, lens, samples=256).alpha
@@ -165,12 +178,14 @@ def test_lens_change_does_not_resort(monkeypatch):
 def test_culling_counts_and_tau_culls_faint_blurred_gaussians():
     scene = random_scene(seed=4)
     r = QuadBackend(scene)
-    r.draw(CAM, Lens(4.5, 0.0), RenderSettings(tau=0.0), count=True)
+    r.draw(CAM, Lens(4.5, 0.0), RenderSettings(tau=0.0, dof="splat"), count=True)
     all_drawn = r.stats.drawn
     assert 0 < all_drawn <= scene.count
-    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255, cut="drop"), count=True)
+    r.draw(CAM, Lens(4.5, 0.0), RenderSettings(tau=0.0), count=True)
+    assert r.stats.drawn == all_drawn  # the sliced mode draws each Gaussian once
+    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255, cut="drop", dof="splat"), count=True)
     assert r.stats.drawn < all_drawn  # blurred o·β fell below τ: those are never drawn
-    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255, cut="conserve"), count=True)
+    r.draw(CAM, Lens(4.5, 400.0), RenderSettings(tau=2 / 255, cut="conserve", dof="splat"), count=True)
     assert r.stats.drawn >= all_drawn  # conserving the mass, faint splats shrink instead (blur may bring more on screen)
 
 

@@ -1,11 +1,11 @@
 """The bundled samples: what the README promises of them, and the GL renderer against the CPU
-reference on them (A = 0 and two apertures, τ ∈ {0, 1/255, 2/255})."""
+reference on them (per-splat: A = 0 and two apertures, τ ∈ {0, 1/255, 2/255}; sliced: two apertures)."""
 
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import assert_matches_reference, psnr
+from conftest import assert_matches_reference, assert_matches_sliced_reference, psnr
 
 from dofview.bench import synth
 from dofview.frame import RenderSettings
@@ -13,7 +13,7 @@ from dofview.io import load_scene
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens
 from dofview.rendering.quad import QuadBackend
-from dofview.rendering.reference import render_reference
+from dofview.rendering.reference import render_reference, render_reference_sliced
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 FOCUS = {"cards": 4.0, "lamp": synth.LAMP_DEPTH}
@@ -54,11 +54,24 @@ def test_gl_matches_reference_on_samples(backend, sample, aperture, tau):
     within 1e-3 relative where α > 0.5."""
     name, scene, cams = sample
     cam = cams[1].resized(120, 90)
-    lens, settings = Lens(FOCUS[name], aperture), RenderSettings(tau=tau)
+    lens, settings = Lens(FOCUS[name], aperture), RenderSettings(tau=tau, dof="splat")
     gl = backend(scene, packed=False).render(cam, lens, settings)
     ref = render_reference(scene, cam, lens, settings, margins=True)
     assert_matches_reference(gl, ref, max_near_cut=0.03)
     assert psnr(np.clip(gl.rgba, 0, 1), np.clip(ref[0].rgba, 0, 1)) >= 45.0
+
+
+@pytest.mark.parametrize("aperture", [30.0, 90.0])
+def test_sliced_gl_matches_reference_on_samples(backend, sample, aperture):
+    """The default mode (sliced) against its CPU reference at the default τ, with the same two
+    bars as the per-splat test above."""
+    name, scene, cams = sample
+    cam = cams[1].resized(120, 90)
+    lens, settings = Lens(FOCUS[name], aperture), RenderSettings()
+    gl = backend(scene, packed=False).render(cam, lens, settings)
+    ref = render_reference_sliced(scene, cam, lens, settings)
+    assert_matches_sliced_reference(gl, ref)
+    assert psnr(np.clip(gl.rgba, 0, 1), np.clip(ref.rgba, 0, 1)) >= 45.0
 
 
 def test_three_focus_distances_move_the_sharp_plane():

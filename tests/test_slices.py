@@ -1,7 +1,9 @@
-"""Depth-sliced depth of field (rendering/slices.py): the slicing rule, the aperture kernel, the
-blur's guard band, and the composite against the GL renderer's own pinhole blend."""
+"""Depth-sliced depth of field, the CPU twin (rendering/slices.py): the layer plan, the aperture
+kernel and the lens cells of refinement, the gather's light and guard band, the levels, and the
+composite against the GL renderer's own pinhole blend (a slanted floor without seams)."""
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +11,6 @@ import pytest
 
 from dofview.bench.metrics import psnr
 from dofview.bench.primitives import Parts, add_panel
-from dofview.bench.sliced_study import ANCHOR, COMPOSITE_VARIANTS, DEFAULT_COMPOSITE, render_slices, sliced_frame
 from dofview.bench.variants import make_references
 from dofview.camera import look_at
 from dofview.errors import DofviewError
@@ -18,32 +19,31 @@ from dofview.io import load_scene
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import Lens, aperture_for_blur
 from dofview.rendering import get_backend
+from dofview.rendering import slices
+from dofview.rendering.depth_order import camera_depths
+from dofview.rendering.progressive import lens_cells
 from dofview.rendering.slices import (
-    COMPOSITES,
+    SLICE_RULE,
+    Aperture,
     SliceRule,
     aperture_kernel,
-    assign_slices,
-    blur_slice,
-    share_weights,
+    from_blend_space,
+    plan_layers,
+    reduce2,
+    resolve,
+    scatter,
     signed_coc,
     slice_edges,
     sliced_image,
+    to_blend_space,
+    upsample,
 )
-from dofview.rendering.depth_order import camera_depths
-from dofview.tonemap import encode
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
-PINHOLE = RenderSettings(tau=0.0)
-SHARE, DEFAULT = COMPOSITE_VARIANTS[DEFAULT_COMPOSITE]  # the chosen rule: neighbour sharing + its composite
+PINHOLE = RenderSettings(dof="splat")  # at A = 0: the trained blend, τ = 1/255 as the layers blend
 
 
-def _unblurred(sf, **kw):
-    """The composite of ``sf`` with every radius (both of a shared layer's) set to zero."""
-    splits = [None if sp is None else (sp[0], 0.0) for sp in sf.splits]
-    return sliced_image(sf.layers, [0.0] * len(sf.layers), sf.encoded, centres=sf.centres, splits=splits, **kw)
-
-
-# ---- the slicing rule -------------------------------------------------------------------------------
+# ---- the plan ---------------------------------------------------------------------------------------
 def test_slice_edges_grow_from_a_focus_slice_and_cover_the_range():
     rule = SliceRule(width=2.0, growth=1.25, huge=math.inf)
     e = slice_edges(-30.0, 12.0, rule)
@@ -56,16 +56,42 @@ def test_slice_edges_grow_from_a_focus_slice_and_cover_the_range():
     assert e[0] >= 12.0 and e[-1] <= -30.0
 
 
-def test_assign_slices_puts_each_splat_between_its_edges_and_huge_ones_aside():
+def test_layers_are_contiguous_ranges_and_huge_coc_splats_are_set_aside():
+    z = np.array([-1.0, 0.005, 0.02, 0.5, 1.0, 1.0, 2.0, 50.0], np.float32)  # draw order, nearest first
+    lens = Lens(1.0, 20.0)  # c = 10·(1/z − 1)
+    huge = replace(SLICE_RULE, huge=80.0)
+    layers = plan_layers(z, lens, near=0.01, rule=huge)
+    assert layers[0].first == 2  # the two culled ones are left out
+    assert layers[0].lensed and layers[0].end == 3 and layers[0].scale == 1  # c(0.02) = 490 px > huge
+    assert [(l.first, l.end) for l in layers[1:]] == [(3, 4), (4, 6), (6, 7), (7, 8)]
+    assert not any(l.lensed for l in layers[1:])
+    # each layer's radius: its splats' largest |c|, its level by SLICE_RULE.limit (3 px)
+    assert [l.radius for l in layers[1:]] == pytest.approx([10.0, 0.0, 5.0, 9.8], rel=1e-6)
+    assert [l.scale for l in layers[1:]] == [4, 1, 2, 4]  # one splat a layer: its smallest |c| is its largest
+    finer = plan_layers(z, lens, near=0.01, rule=huge, size=0.5)  # a lens cell half the aperture's size
+    assert [l.scale for l in finer[1:]] == [2, 1, 1, 2]
+    stale = plan_layers(np.array([0.5, 2.0, 1.0, 50.0], np.float32), lens, near=0.01)  # an earlier view's order
+    assert [l.first for l in stale] == sorted(l.first for l in stale) and stale[-1].end == 4
+    # by default every splat is sliced, however near (docs/BENCHMARKS.md: the near-wall room)
+    everything = plan_layers(z, lens, near=0.01)
+    assert not any(l.lensed for l in everything) and everything[0].radius == pytest.approx(490.0, rel=1e-6)
+
+
+def test_every_splat_lies_within_its_layers_coc_range():
     rng = np.random.default_rng(1)
-    c = np.concatenate([rng.uniform(-50, 50, 500), [200.0, -300.0, 0.0]])
-    s = assign_slices(c, SliceRule(1.0, 1.15, 40.0))
-    inside = (s.index >= 0) & (s.index < s.count)
-    i = s.index[inside]
-    assert np.all(s.edges[i] >= c[inside]) and np.all(c[inside] > s.edges[i + 1])
-    assert set(s.index[c > 40]) == {-1} and set(s.index[c < -40]) == {s.count}
-    np.testing.assert_allclose(s.radius, np.abs(s.edges[:-1] + s.edges[1:]) / 2)
-    assert s.radius[s.index[-1]] == 0.0  # the focus slice is not blurred
+    z = np.sort(1.0 / rng.uniform(0.05, 2.0, 2000))  # nearest first
+    lens = Lens(2.0, 60.0)
+    c = signed_coc(z, lens)
+    layers = plan_layers(z.astype(np.float32), lens, near=0.01)
+    assert layers[0].first == 0 and layers[-1].end == len(z)
+    assert all(a.end == b.first for a, b in zip(layers, layers[1:]))
+    for layer in layers:
+        part = c[layer.first:layer.end]
+        if layer.lensed:
+            assert np.all(np.abs(part) > SLICE_RULE.huge)
+        else:
+            assert np.abs(part).max() == pytest.approx(layer.radius, rel=1e-6)
+            assert layer.scale == SLICE_RULE.scale(float(np.abs(part).min()))
 
 
 def test_signed_coc_is_positive_in_front_of_focus():
@@ -73,25 +99,14 @@ def test_signed_coc_is_positive_in_front_of_focus():
     np.testing.assert_allclose(c, [2.5, 0.0, -1.25])
 
 
-def test_share_weights_split_each_splat_between_its_two_centres_linearly():
-    centres = np.array([6.0, 2.0, 0.0, -2.0])
-    c = np.array([9.0, 6.0, 4.0, 3.0, 1.0, 0.0, -1.5, -2.0, -7.0])
-    interval, t = share_weights(c, centres)
-    np.testing.assert_array_equal(interval, [0, 0, 1, 1, 2, 2, 3, 3, 4])
-    np.testing.assert_allclose(t, [0.0, 0.0, 0.5, 0.75, 0.5, 1.0, 0.75, 1.0, 1.0])
-    # a splat's blur radius, interpolated between its two centres, follows |c| within the slices
-    radius = np.abs((1 - t) * centres[np.maximum(interval - 1, 0)] + t * centres[np.minimum(interval, 3)])
-    inside = (c <= centres[0]) & (c >= centres[-1])
-    np.testing.assert_allclose(radius[inside], np.abs(c[inside]))
-
-
 def test_rule_refuses_nonsense():
-    for kw in ({"width": 0.0}, {"growth": 0.9}, {"huge": 0.1}):
+    for kw in ({"width": 0.0}, {"growth": 0.9}, {"huge": 0.1}, {"limit": 0.5}, {"spread": -1.0}, {"limit": math.nan}):
         with pytest.raises(DofviewError):
             SliceRule(**kw)
+    assert [SLICE_RULE.scale(r) for r in (0.0, 3.0, 3.0000001, 6.0, 6.5, 16.0)] == [1, 1, 1, 2, 4, 8]
 
 
-# ---- the aperture kernel ----------------------------------------------------------------------------
+# ---- the kernel -------------------------------------------------------------------------------------
 def test_disk_kernel_profile():
     r = 5.3
     k = aperture_kernel(r)
@@ -111,33 +126,142 @@ def test_disk_kernel_profile():
     assert small[small.shape[0] // 2, small.shape[1] // 2] == 1.0 and small.sum() == 1.0
 
 
-def test_bladed_kernel_is_the_polygon():
+def test_bladed_kernel_is_the_polygon_turned_in_front_of_focus():
     r = 8.0
     hexagon = aperture_kernel(r, blades=6)
     n = hexagon.shape[0] // 2
     assert (hexagon / hexagon.max()).sum() == pytest.approx(1.5 * math.sqrt(3) * r * r, rel=0.02)
-    assert hexagon[n, n + 8] > 0  # a corner on the circle (rotation 0: along +x)
-    assert hexagon[n + 8, n] == 0  # the middle of an edge is inside the circle: r·cos 30° ≈ 6.9
+    assert hexagon[n, n + 8] > 0 and hexagon[n + 8, n] == 0  # a corner at +x; the middle of an edge at r·cos 30°
     np.testing.assert_allclose(aperture_kernel(r, 6, math.pi / 3), hexagon, atol=1e-12)  # its symmetry
     assert not np.allclose(aperture_kernel(r, 6, math.pi / 6), hexagon)
     with pytest.raises(DofviewError):
         aperture_kernel(r, blades=2)
+    # a lens shows a point in front of focus through the aperture turned half a turn
+    cell = Aperture(5, 0.3).whole()
+    taps = cell.taps(r)
+    behind, front = cell.weights(taps, np.float32(-r)), cell.weights(taps, np.float32(r))
+    mirror = {tuple(t): i for i, t in enumerate(taps)}
+    np.testing.assert_array_equal(front, behind[[mirror[(-x, -y)] for x, y in taps]])
+    assert not np.array_equal(front, behind)  # five blades are not symmetric under the half turn
+
+
+@pytest.mark.parametrize("n,blades", [(2, 0), (4, 0), (8, 0), (16, 0), (6, 6)])
+def test_lens_cells_add_up_to_the_whole_lens(n, blades):
+    """Refinement's passes: each cell's kernel, moved by the cell's parallax (−c·point, split
+    bilinearly between pixels) and weighed by its share, sums to the whole aperture's kernel, for
+    sources behind and in front of focus; without the parallax it does not (the test's control)."""
+    cells = lens_cells(n, blades, 0.0)
+    assert sum(c.share for c in cells) == pytest.approx(1.0)
+    assert all(abs(c.share - 1 / n) < 0.25 / n for c in cells)  # the CVT: near-equal shares
+    whole = Aperture(blades).whole()
+    for c in (-24.0, 17.0):
+        size = int(abs(c)) * 2 + 8
+
+        def splat(moved: bool) -> np.ndarray:
+            total = np.zeros((2 * size + 2, 2 * size + 2))
+            for cell in cells:
+                taps = cell.taps(abs(c))
+                w = cell.weights(taps, np.float32(c)).astype(np.float64)
+                shift = -c * cell.point * np.array([1.0, -1.0]) if moved else np.zeros(2)  # GL orientation
+                x, y = taps[:, 0] + shift[0] + size, taps[:, 1] + shift[1] + size
+                x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+                fx, fy = x - x0, y - y0
+                for dx, dy, part in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy),
+                                     (1, 1, fx * fy)):
+                    np.add.at(total, (y0 + dy, x0 + dx), cell.share * w * part / w.sum())
+            return total
+
+        taps = whole.taps(abs(c))
+        w = whole.weights(taps, np.float32(c)).astype(np.float64)
+        want = np.zeros((2 * size + 2, 2 * size + 2))
+        want[size + taps[:, 1].astype(int), size + taps[:, 0].astype(int)] = w / w.sum()
+        got, unmoved = splat(True), splat(False)
+        assert got.sum() == pytest.approx(1.0)
+        err = np.abs(got - want).sum()  # L1 of two unit masses: 0 equal, 2 disjoint
+        assert err < 0.08, err
+        assert np.abs(unmoved - want).sum() > 3 * err
+
+
+# ---- the passes -------------------------------------------------------------------------------------
+def _scatter(rho: np.ndarray, colour: np.ndarray, cell) -> tuple[np.ndarray, np.ndarray]:
+    """slices.scatter of colour (h, w, 4) of signed CoC ``rho`` (h, w), prepared as slices.prepare does."""
+    taps = cell.taps(float(np.abs(rho).max()))
+    norm = cell.weights(taps, rho.astype(np.float32)).sum(axis=0, dtype=np.float64)
+    b = np.stack([rho, colour[..., 3] / norm], -1)
+    return scatter(colour / norm[..., None], b, cell, taps)
+
+
+def test_scatter_spreads_each_pixel_over_its_own_kernel_and_keeps_its_light():
+    rng = np.random.default_rng(3)
+    h, w = 40, 50
+    colour = np.zeros((h, w, 4))
+    colour[8:-8, 8:-8] = rng.uniform(0.1, 1.0, (h - 16, w - 16, 4))  # nothing within reach of the border
+    rho = np.where(rng.uniform(size=(h, w)) < 0.5, -1, 1) * rng.uniform(0.0, 6.0, (h, w))
+    cell = Aperture().whole()
+    out, vis = _scatter(rho, colour, cell)
+    np.testing.assert_allclose(out.sum(axis=(0, 1)), colour.sum(axis=(0, 1)), rtol=1e-5)  # every pixel's light kept
+    np.testing.assert_allclose(vis.sum(), colour[..., 3].sum(), rtol=1e-5)
+    # one source alone: its kernel, exactly
+    dot = np.zeros((31, 31, 4))
+    dot[15, 15] = 1.0
+    out, _ = _scatter(np.full((31, 31), -5.0), dot, cell)
+    k = aperture_kernel(5.0)
+    n = k.shape[0] // 2
+    np.testing.assert_allclose(out[15 - n:15 + n + 1, 15 - n:15 + n + 1, 3], k, atol=1e-6)
+    assert out[..., 3].sum() == pytest.approx(1.0)
+    # |ρ| < ½ is the identity
+    out, _ = _scatter(np.full((h, w), 0.4), colour, cell)
+    np.testing.assert_allclose(out, colour, atol=1e-12)
 
 
 def test_guard_band_keeps_coverage_at_the_frame_border():
     full = np.ones((30, 40, 4))
-    kept = blur_slice(full, 6.0, "replicate")
-    lost = blur_slice(full, 6.0, "zero")
-    np.testing.assert_allclose(kept, 1.0, atol=1e-9)
-    assert lost[0, 20, 3] < 0.7 and lost[15, 20, 3] == pytest.approx(1.0)
-    dot = np.zeros((31, 31, 4))
-    dot[15, 15] = 1.0
-    k = aperture_kernel(5.0)  # 13 × 13: a point spreads into the kernel itself
-    np.testing.assert_allclose(blur_slice(dot, 5.0)[15 - 6:15 + 7, 15 - 6:15 + 7, 3], k, atol=1e-12)
-    np.testing.assert_allclose(blur_slice(dot, 12.0, scale=2)[..., 3].sum(), 1.0, rtol=1e-6)  # reduced res keeps mass
+    cell = Aperture().whole()
+    out, vis = _scatter(np.full((30, 40), -6.0), full, cell)
+    np.testing.assert_allclose(out, 1.0, rtol=1e-6)  # the border repeats: a wall stays opaque to the edge
+    np.testing.assert_allclose(vis, 1.0, rtol=1e-6)
 
 
-# ---- against the renderer's own blend ----------------------------------------------------------------
+def test_levels_average_the_texels_inside_and_upsample_with_aligned_centres():
+    x = np.arange(35.0).reshape(5, 7)
+    r = reduce2(x)
+    assert r.shape == (3, 4)
+    assert r[0, 0] == pytest.approx(np.mean([0, 1, 7, 8])) and r[2, 3] == x[4, 6]  # a corner block of one texel
+    assert r[0, 3] == pytest.approx(np.mean([6, 13]))  # an edge block of two
+    ramp = np.add.outer(np.arange(8.0), 2 * np.arange(10.0))
+    up = upsample(reduce2(ramp), 2, 8, 10)
+    np.testing.assert_allclose(up[1:-1, 1:-1], ramp[1:-1, 1:-1])  # linear: exact away from the clamped rim
+    np.testing.assert_allclose(upsample(np.full((3, 4, 2), 0.7), 4, 11, 15), 0.7)
+
+
+def test_resolve_fills_only_what_over_lost():
+    over = np.array([[[0.2, 0.2, 0.2, 0.5], [0.1, 0.1, 0.1, 0.9], [0.0, 0.0, 0.0, 0.0]]])
+    visible = np.array([[0.8, 0.6, 0.5]])
+    out = resolve(over, visible)
+    np.testing.assert_allclose(out[0, 0], over[0, 0] * 0.8 / 0.5)  # short of the visible sum: scaled up to it
+    np.testing.assert_allclose(out[0, 1], over[0, 1])  # more than it (a revealed background): kept
+    np.testing.assert_allclose(out[0, 2], 0.0)  # nothing to scale
+    assert resolve(over[:, :1], np.array([[3.0]]))[0, 0, 3] == pytest.approx(1.0)  # capped at full coverage
+    np.testing.assert_allclose(resolve(over[:, :1] * 2.4, np.array([[0.2]]))[0, 0], over[0, 0] * 2.4 / 1.2)
+
+
+# ---- against the renderer's own blend -----------------------------------------------------------------
+def _layer_frames(renderer, camera, lens, plan, order):
+    """The layers of ``plan`` blended by ``renderer`` (a sub-scene each: pinhole, or the lens for a
+    lensed layer), as slices.sliced_image takes them: blend-space colour and depth sums."""
+    out = []
+    for layer in plan:
+        sub = get_backend("quad", renderer.scene.subset(order[layer.first:layer.end]), ctx=renderer.ctx)
+        try:
+            f = sub.render(camera, lens if layer.lensed else Lens(lens.focus, 0.0), PINHOLE)
+        finally:
+            sub.release()
+        a = f.alpha.astype(np.float64)
+        inv = np.where(f.focus_depth > 0, 1.0 / np.maximum(f.focus_depth, 1e-30), 0.0)
+        out.append((to_blend_space(f.rgba, f.encoded), np.stack([f.depth * a, inv * a, np.zeros_like(a), a], -1)))
+    return out
+
+
 @pytest.fixture(scope="module")
 def cards():
     scene = load_scene(SAMPLES / "cards.ply", progress=False)
@@ -147,116 +271,63 @@ def cards():
     r.release()
 
 
-def _lens(renderer, cam, blur):
-    z = camera_depths(renderer.scene.means, cam)
-    z = z[z > 0.01]
-    focus = float(np.median(z))
-    return Lens(focus, aperture_for_blur(blur, focus, float(np.percentile(z, 5)), float(np.percentile(z, 95))))
-
-
-def test_at_aperture_zero_the_slices_are_the_pinhole(cards):
+def test_unblurred_layers_composite_to_the_pinhole_in_the_blend_space_only(cards):
     r, cam = cards
-    lens = _lens(r, cam, 12.0)
-    pin = r.render(cam, Lens(lens.focus, 0.0), PINHOLE)
-    for share in (False, True):
-        sf = render_slices(r, cam, Lens(lens.focus, 0.0), SliceRule(), share=share)
-        assert len(sf.layers) == 1 and sf.radii == [0.0]
-        for _, kw in COMPOSITE_VARIANTS.values():
-            assert psnr(sliced_frame(sf, **kw).rgba, pin.rgba) >= 60.0
-        # the slices of a real lens, left unblurred, composite to the pinhole too (sharing splits a
-        # layer's content between two radii, never its blend)
-        sf = render_slices(r, cam, lens, SliceRule(), share=share)
-        assert len(sf.layers) >= 8
-        assert share == any(sp is not None for sp in sf.splits)
-        for mode in COMPOSITES:
-            assert psnr(_unblurred(sf, mode=mode), pin.rgba) >= 60.0
-        assert psnr(_unblurred(sf, window=4.0), pin.rgba) >= 60.0
-    # …in the encoded space only: composited in linear light they are not the pinhole
-    assert psnr(sliced_image(sf.layers, [0.0] * len(sf.layers), False), pin.rgba) < 50.0
+    z = camera_depths(r.scene.means, cam)
+    focus = float(np.median(z[z > 0.01]))
+    lens = Lens(focus, aperture_for_blur(12.0, focus, float(np.percentile(z, 5)), float(np.percentile(z, 95))))
+    r.sort(cam)
+    order = r.front_to_back()
+    plan = plan_layers(camera_depths(r.scene.means[order], cam), lens, 0.01)
+    assert len(plan) >= 8
+    layers = _layer_frames(r, cam, lens, plan, order)
+    pin = r.render(cam, Lens(focus, 0.0), PINHOLE)
+    still, plan = Lens(focus, 1e-6), [replace(l, scale=1) for l in plan]  # the same layers, no blur anywhere
+    colour, sums = sliced_image(layers, plan, still)
+    assert psnr(from_blend_space(colour, True), pin.rgba) >= 60.0
+    np.testing.assert_allclose(sums[..., 3], pin.alpha, atol=1e-5)  # the pinhole's coverage in the depth sums
+    # composited in linear light the same layers are not the pinhole
+    linear = [(from_blend_space(c, True).astype(np.float64), s) for c, s in layers]
+    colour, _ = sliced_image(linear, plan, still)
+    assert psnr(colour.astype(np.float32), pin.rgba) < 50.0
 
 
-def test_two_slices_over_each_other_are_the_pinhole_blend_of_both(cards):
-    r, cam = cards
-    scene = r.scene
-    z = camera_depths(scene.means, cam)
-    near = z < np.median(z)
-    layers = []
-    for part in (near, ~near):
-        sub = get_backend("quad", scene.subset(part), ctx=r.ctx)
-        layers.append(sub.render(cam, Lens(1.0, 0.0), PINHOLE).rgba)
-        sub.release()
-    pin = r.render(cam, Lens(1.0, 0.0), PINHOLE)
-    both = (layers[0][..., 3] > 0.2) & (layers[1][..., 3] > 0.2)
-    assert both.mean() > 0.05  # the two layers overlap on screen
-    assert psnr(sliced_image(layers, [0.0, 0.0], True), pin.rgba) >= 60.0
-
-
-def test_slanted_floor_crossing_many_slices_shows_no_banding():
-    """A uniform grey floor receding from z = 1 to 9 crosses 13 slices. Composited "over" from
-    disjoint slices, each slice's blurred band thins where the next begins and the black shows
-    through in bands; the chosen rule (neighbour sharing, so the blur follows the CoC without
-    steps, and a composite that adds the complementary parts of one surface) keeps it whole."""
+def test_slanted_floor_crossing_many_layers_shows_no_seams(monkeypatch):
+    """A uniform grey floor receding from z = 0.5 to 9 crosses a dozen layers. Composited "over",
+    each layer's blurred band thins where the next begins and the black shows through at every
+    cut; the resolve (the sum of blurred visible parts) keeps it as opaque as the thin lens does,
+    and the per-pixel CoC blurs it by a radius that follows its depth, so its rows follow the
+    lens's (48 pinhole passes averaged in linear light) without bands."""
     parts = Parts.empty()
     add_panel(parts, 1, 0.6, {0: (-4.0, 4.0), 2: (0.5, 9.0)}, (0.6, 0.6, 0.6), spacing=0.05, opacity=0.98)
     scene = parts.build("srgb", "floor")
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.35, 4.0), 160, 120, 60.0)
+    lens = Lens(3.0, aperture_for_blur(10.0, 3.0, 1.0, 9.0))
     r = get_backend("quad", scene)
     try:
-        lens = Lens(3.0, aperture_for_blur(10.0, 3.0, 1.0, 9.0))
-        seamy = render_slices(r, cam, lens, SliceRule(), share=False)
-        chosen = render_slices(r, cam, lens, SliceRule(), share=SHARE)
-        pin = r.render(cam, Lens(3.0, 0.0), PINHOLE)
+        r.sort(cam)
+        order = r.front_to_back()
+        plan = plan_layers(camera_depths(scene.means[order], cam), lens, 0.01)
+        layers = _layer_frames(r, cam, lens, plan, order)
+        truth = make_references(r, cam, lens, RenderSettings(), 48, False, lambda: None).physical
     finally:
         r.release()
-    assert len(chosen.layers) >= 10
-    assert psnr(_unblurred(chosen, **DEFAULT), pin.rgba) >= 60.0
-    rows = np.nonzero(pin.alpha[:, 80] > 0.95)[0]
-    rows = rows[rows > rows.min() + 15]  # the floor, away from its far edge
-    assert rows.size > 20
+    assert len(plan) >= 10
+    seamless = from_blend_space(sliced_image(layers, plan, lens)[0], True)
+    monkeypatch.setattr(slices, "resolve", lambda over, visible: over)
+    over = from_blend_space(sliced_image(layers, plan, lens)[0], True)
+    rows = np.arange(60, 112)  # the floor from its far edge's blur to the frame's bottom rows
     cols = slice(50, 110)
 
-    def profile(frame):
-        a = frame.alpha[rows, cols].mean(axis=1) - pin.alpha[rows, cols].mean(axis=1)
-        lum = frame.rgba[rows, cols, :3].mean(axis=(1, 2))
-        return a, np.abs(np.diff(lum, 2)).max()
+    def bands(rgba):
+        """Per floor row, the largest deviation from the lens's of coverage and of luminance."""
+        a = rgba[rows, cols, 3].mean(axis=1) - truth.alpha[rows, cols].mean(axis=1)
+        lum = rgba[rows, cols, :3].mean(axis=(1, 2)) - truth.rgba[rows, cols, :3].mean(axis=(1, 2))
+        return np.abs(a).max(), np.abs(lum).max()
 
-    chosen_a, chosen_d2 = profile(sliced_frame(chosen, **DEFAULT))
-    seamy_a, seamy_d2 = profile(sliced_frame(seamy))
-    assert np.min(seamy_a) < -0.1  # disjoint slices "over" each other let the black through…
-    assert np.all(np.abs(chosen_a) < 0.05)  # …the chosen rule keeps the floor as opaque as the pinhole
-    assert chosen_d2 < 0.6 * seamy_d2
-
-
-def test_a_frame_filling_near_wall_keeps_its_blurred_coverage():
-    """A beige wall 0.5 units from the lens fills the 80 × 60 frame but for a central opening onto
-    a blue plane in focus at 3; the wall's CoC is 20 px (60 px at 240 px wide). The thin lens
-    blurs the opening's rim and keeps the wall opaque at the frame border; the slices must agree
-    with a 48-sample accumulation of the lens on the wall's coverage (read from the red channel
-    of the blend, 0.3 on the plane, 0.8 on the wall), where per-splat DoF leaves holes."""
-    parts = Parts.empty()
-    add_panel(parts, 2, 3.0, {0: (-2.5, 2.5), 1: (-2.0, 2.0)}, (0.3, 0.5, 0.8), spacing=0.05)
-    g = np.mgrid[-0.5:0.5:0.01, -0.4:0.4:0.01].reshape(2, -1).T
-    wall = g[(np.abs(g[:, 0]) > 0.12) | (np.abs(g[:, 1]) > 0.09)]
-    parts.add(np.c_[wall, np.full(len(wall), 0.5)], 0.006, (0.8, 0.75, 0.6), 0.98)
-    scene = parts.build("srgb", "near wall")
-    cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 80, 60, 70.0)
-    lens = Lens(3.0, 2 * 20.0 / (1 / 0.5 - 1 / 3.0))
-    r = get_backend("quad", scene)
-    try:
-        truth = make_references(r, cam, lens, RenderSettings(), 48, False, lambda: None).physical
-        sliced = sliced_frame(render_slices(r, cam, lens, SliceRule(), share=SHARE), max_full_radius=8.0, **DEFAULT)
-        anchor = r.render(cam, lens, ANCHOR)
-    finally:
-        r.release()
-
-    def coverage(frame):
-        return (encode(frame.rgba[..., 0].astype(np.float64)) - 0.3) / 0.5
-
-    border = np.r_[0:8, 52:60]  # rows of wall only, up to the frame border
-    c_truth, c_sliced = coverage(truth), coverage(sliced)
-    assert c_truth[border].min() > 0.85
-    assert c_sliced[border].min() > c_truth[border].min() - 0.05  # no room showing through there
-    err = np.abs(c_sliced - c_truth)
-    assert err.max() < 0.2 and err.mean() < 0.05  # the opening's blurred rim too
-    assert np.abs(coverage(anchor) - c_truth).mean() > 2 * err.mean()  # (what the test tells apart)
-    assert psnr(sliced.rgba, truth.rgba) >= 30.0
+    (a_seamless, lum_seamless), (a_over, lum_over) = bands(seamless), bands(over)
+    assert a_over > 0.1  # "over" of complementary blurred parts lets the black through…
+    # …the resolve keeps every row of the floor within 3 % of the lens's coverage and 6 % of its
+    # luminance (0.31–0.33; measured 0.025 and 0.017, the per-splat mode's 0.032)
+    assert a_seamless < 0.03 and lum_seamless < 0.02
+    assert lum_seamless < 0.3 * lum_over

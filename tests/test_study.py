@@ -18,7 +18,7 @@ def test_study_writes_the_table_plot_and_rows(tmp_path):
                  "--frames", "1", "--coc-px", "6", "--focus-pct", "50", "--out", str(out)]) == 0
     rows = list(csv.DictReader((out / "study.csv").open()))
     methods = {r["method"] for r in rows}
-    assert {"pinhole", "k=1/9 (CineGS)", "k=1/4", "k=1 (Spark)", "default", "conserve cut"} <= methods
+    assert {"pinhole", "k=1/9 (CineGS)", "k=1/4", "k=1 (Spark)", "default", "splat, conserve cut"} <= methods
     assert {r["view"] for r in rows} == {"0", "1"}
     table = (out / "study.md").read_text()
     assert "| default |" in table and "Largest blur (6 px CoC): frame time / pinhole" in table

@@ -57,7 +57,7 @@ def hdr_scene(seed: int = 0) -> GaussianScene:
                          opacities=opacities, sh_dc=(colours - 0.5) / SH_C0, colour_space="linear", name="hdr")
 
 
-@pytest.mark.parametrize("settings", [RenderSettings(), RenderSettings(tau=0.0), RenderSettings(k=1 / 9, opacity_norm="optical-depth")])
+@pytest.mark.parametrize("settings", [RenderSettings(dof="splat"), RenderSettings(tau=0.0, dof="splat"), RenderSettings(k=1 / 9, opacity_norm="optical-depth", dof="splat")])
 def test_forward_render_matches_gl(settings):
     scene = random_scene(400, colour_space="linear")
     cam = look_at((0.3, 0.1, 0.0), (0.0, 0.0, 5.0), 64, 48, 60.0)
@@ -76,7 +76,7 @@ def test_forward_render_has_gradients():
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 5.0), 32, 24, 60.0)
     params = [torch.tensor(np.asarray(a, np.float32), requires_grad=True)
               for a in (scene.means, scene.quats, scene.scales, scene.opacities, scene.base_colour())]
-    r = rasterise(*params, cam, Lens(4.0, 10.0), RenderSettings(tau=0.0))
+    r = rasterise(*params, cam, Lens(4.0, 10.0), RenderSettings(tau=0.0, dof="splat"))
     r.rgb.sum().backward()
     for p in params:
         assert torch.isfinite(p.grad).all() and p.grad.abs().sum() > 0

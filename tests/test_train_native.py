@@ -38,7 +38,8 @@ def test_any_thread_count_gives_the_same_bits():
     for threads in (1, 2, 5):
         params = [torch.tensor(np.asarray(a), dtype=torch.float32, requires_grad=True)
                   for a in (scene.means, scene.quats, scene.scales, scene.opacities, scene.base_colour())]
-        r = native.rasterise_native(*params, cam, Lens(4.0, 20.0), RenderSettings(tau=0.0), threads=threads)
+        r = native.rasterise_native(*params, cam, Lens(4.0, 20.0), RenderSettings(tau=0.0, dof="splat"),
+                                     threads=threads)
         (r.rgb.square().sum() + r.alpha.sum()).backward()
         out.append([r.rgb.detach(), r.alpha.detach()] + [p.grad for p in params])
     assert float(out[0][1].max()) > 0.5  # splats overlap: the walk matters

@@ -39,7 +39,7 @@ def test_trainer_sh_equals_renderer(degree):
     rng = np.random.default_rng(degree)
     scene.sh_rest = (rng.normal(size=scene.sh_rest.shape) * 0.6).astype(np.float32)  # some colours clamp at 0
     s = project(_t(scene.means), _t(scene.quats), _t(scene.scales), _t(scene.opacities),
-                _t(SH_C0 * scene.sh_dc.astype(np.float64) + 0.5), CAM, Lens(4.0, 0.0), RenderSettings(),
+                _t(SH_C0 * scene.sh_dc.astype(np.float64) + 0.5), CAM, Lens(4.0, 0.0), RenderSettings(dof="splat"),
                 sh=_t(scene.sh_rest))
     want = sh_colour(scene, CAM.centre, s.drawn.numpy())
     assert len(want) > 100 and (want == 0).any() and (want > 0).any()

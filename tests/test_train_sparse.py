@@ -31,7 +31,7 @@ def _tensors(arrays, dtype=torch.float32, grad=False):
 
 @SPARSE
 @pytest.mark.parametrize("aperture", [0.0, 20.0])
-@pytest.mark.parametrize("settings", [RenderSettings(), RenderSettings(tau=0.0)])
+@pytest.mark.parametrize("settings", [RenderSettings(dof="splat"), RenderSettings(tau=0.0, dof="splat")])
 def test_sparse_forward_matches_dense_and_gl(raster, aperture, settings):
     scene = random_scene(400, colour_space="linear")
     lens = Lens(focus=4.0, aperture=aperture)
@@ -78,7 +78,7 @@ def _overlapping_scene(n=60, seed=1):
 @pytest.mark.parametrize("aperture", [0.0, 20.0])
 def test_sparse_gradients_match_dense_autograd(raster, aperture):
     arrays = _overlapping_scene()
-    lens, settings = Lens(4.0, aperture), RenderSettings(tau=0.0)
+    lens, settings = Lens(4.0, aperture), RenderSettings(tau=0.0, dof="splat")
     s = project(*_tensors(arrays, torch.float64), CAM, lens, settings)
     tiles = bin_tiles(s.lo, s.hi, CAM.width, CAM.height)
     assert int((tiles.gauss == 0).sum()) >= 4  # the corner splat is in four tiles or more
@@ -105,7 +105,7 @@ def _stack_scene():
 @SPARSE
 def test_early_stop_and_its_gradients(raster):
     arrays = _stack_scene()
-    lens, settings = Lens(4.0, 0.0), RenderSettings(tau=0.0)
+    lens, settings = Lens(4.0, 0.0), RenderSettings(tau=0.0, dof="splat")
     rgb_s, alpha_s, grads_s = _render_grads(raster, arrays, lens, settings)
     rgb_d, alpha_d, grads_d = _render_grads(rasterise, arrays, lens, settings)
     stopped = alpha_d > 1.0 - EARLY_STOP
@@ -131,11 +131,11 @@ def test_gradcheck_double_precision(raster):
     params = _tensors((means, quats, scales, opacities, colours), torch.float64, grad=True)
 
     def render(*p):
-        r = raster(*p, cam, Lens(4.0, 6.0), RenderSettings(tau=0.0))
+        r = raster(*p, cam, Lens(4.0, 6.0), RenderSettings(tau=0.0, dof="splat"))
         assert float(r.alpha.detach().max()) <= 1.0 - EARLY_STOP + 1e-12
         return r.rgb, r.alpha
 
-    dense = rasterise(*params, cam, Lens(4.0, 6.0), RenderSettings(tau=0.0))
+    dense = rasterise(*params, cam, Lens(4.0, 6.0), RenderSettings(tau=0.0, dof="splat"))
     assert float(dense.alpha.detach().max()) > 1.0 - EARLY_STOP  # the dense path would have gone on
     assert torch.autograd.gradcheck(render, params, eps=1e-6, atol=1e-5, rtol=1e-4)
 

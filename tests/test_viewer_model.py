@@ -91,7 +91,8 @@ def test_moving_view_sorts_in_the_background_then_draws_the_current_order():
 
 def test_still_view_refines_the_thin_lens_in_complete_stages():
     """Still frames refine in stages N = 1, 2, 4, 8: every frame shows the last complete stage, bit
-    for bit what ``dofview render --lens-samples N`` renders, from the third still frame N = 2."""
+    for bit what ``dofview render --lens-samples N`` renders, from the second still frame N = 2 (its
+    two passes drawn in one frame, the later stages' one a frame)."""
     model = open_model("quad", lens_samples_max=8)
     try:
         model.settings.aperture = 60.0
@@ -106,7 +107,7 @@ def test_still_view_refines_the_thin_lens_in_complete_stages():
             model.update(time.perf_counter())
             shown.append(model.progressive.samples)
             frames.append(model.renderer.read())
-        assert shown == [1, 1, 2] + [2] * 3 + [4] + [4] * 7 + [8]  # 2 + 4 + 8 passes after the single one
+        assert shown == [1, 2] + [2] * 3 + [4] + [4] * 7 + [8]  # 2 + 4 + 8 passes after the single one
         for n, frame in zip(shown, frames):
             assert np.array_equal(frame.rgba, expected[n].rgba) and np.array_equal(frame.depth, expected[n].depth)
         assert not model.renderer.targets_encoded and not frames[-1].encoded  # stages average linear light

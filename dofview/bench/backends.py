@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from dofview.camera import Camera, framing_camera
-from dofview.frame import RenderSettings
+from dofview.frame import DOF_MODES, RenderSettings
 from dofview.lens import Lens
 from dofview.progress import Progress
 from dofview.scene import GaussianScene
@@ -69,9 +69,11 @@ def cases(size: tuple[int, int], sizes: tuple[int, ...], samples: bool, real: tu
 
 
 def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, apertures: tuple[float, ...],
-            frames: int, backends: tuple[str, ...] = ("quad", "compute"), compute: dict | None = None) -> list[dict]:
+            frames: int, backends: tuple[str, ...] = ("quad", "compute"), compute: dict | None = None,
+            settings: RenderSettings = RenderSettings()) -> list[dict]:
     """Rows for one scene: every backend at every aperture, frames interleaved across backends.
-    ``compute``: keyword arguments for the compute backend (tile, pix)."""
+    ``compute``: keyword arguments for the compute backend (tile, pix); ``settings``: the frames'
+    (the default: sliced depth of field)."""
     from dofview.rendering import get_backend
     from dofview.tonemap import Tonemap
 
@@ -89,7 +91,7 @@ def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, aper
                 for r in turn:
                     ctx.finish()
                     t0 = time.perf_counter()
-                    r.draw(cam, lens, RenderSettings())
+                    r.draw(cam, lens, settings)
                     r.tonemap_to(r.display_fbo, viewport, Tonemap())
                     ctx.finish()
                     if i:
@@ -98,7 +100,7 @@ def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, aper
             for r, t in zip(renderers, times):
                 med = float(np.median(t))
                 rows.append({"scene": label, "count": scene.count, "size": [camera.width, camera.height],
-                             "backend": r.name, "aperture": a, "median_ms": med,
+                             "backend": r.name, "dof": settings.dof, "aperture": a, "median_ms": med,
                              "p90_ms": float(np.percentile(t, 90)), "p99_ms": float(np.percentile(t, 99)),
                              "fps": 1e3 / med, "gpu_bytes": r.gpu_bytes, "bytes_per_gaussian": r.bytes_per_gaussian,
                              "pairs": getattr(r, "pairs", None), "tile": getattr(r, "tile", None),
@@ -151,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-samples", action="store_true", help="skip the bundled samples")
     ap.add_argument("--real", type=Path, action="append", default=[], help="a real scene file (repeatable)")
     ap.add_argument("--compute-tile", help="TILE,PIX for the compute backend (default: its choice for this GL)")
+    ap.add_argument("--dof", choices=DOF_MODES, default=RenderSettings.dof, help="depth of field mode (default %(default)s)")
     ap.add_argument("--json", type=Path, help="write the results here")
     ap.add_argument("--plot", type=Path, help="write the ratio plot (PNG) here")
     args = ap.parse_args(argv)
@@ -165,7 +168,8 @@ def main(argv: list[str] | None = None) -> int:
               "orbit_step_deg": ORBIT_STEP_DEG, "command": "python -m dofview.bench.backends " + " ".join(
                   sys.argv[1:] if argv is None else argv), "rows": []}
     for label, scene, cam, focus in cases(size, sizes, not args.no_samples, tuple(args.real)):
-        result["rows"] += measure(label, scene, cam, focus, apertures, args.frames, compute=compute)
+        result["rows"] += measure(label, scene, cam, focus, apertures, args.frames, compute=compute,
+                                  settings=RenderSettings(dof=args.dof))
         del scene
     text = json.dumps(result, indent=1)
     print(text)

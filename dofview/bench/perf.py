@@ -38,14 +38,19 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from dofview.frame import RenderSettings
 from dofview.progress import Progress
 
 MEASUREMENTS = ("load", "sort", "ui", "memory", "culling", "fragments", "frames", "bottleneck")
+PER_SPLAT = RenderSettings(dof="splat")
+"""The frames measured here: the per-splat pass (its fragments are the quads counted; the figures in
+docs/BENCHMARKS.md "Performance at scale" are of it). The sliced mode's frames: bench.backends --dof."""
 FRAME_SIZE = (1200, 675)
 FOCUS = 6.0  # scene units: mid-depth of synth.random_scene's 2…20 range
 APERTURES = (0.0, 50.0, 100.0)
@@ -265,7 +270,6 @@ def _with_hidden(scene, where: str):
 
 def measure_culling(n: int, size: tuple[int, int], frames: int, raster: str = "quad") -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
-    from dofview.frame import RenderSettings
     from dofview.lens import Lens
     from dofview.rendering import get_backend
 
@@ -279,8 +283,8 @@ def measure_culling(n: int, size: tuple[int, int], frames: int, raster: str = "q
             r = get_backend(raster, scene)
             for aperture in (0.0, 100.0):
                 row = {"variant": name, "count": scene.count, "aperture": aperture}
-                row.update(time_frames(r, cam, Lens(FOCUS, aperture), RenderSettings(), frames))
-                r.draw(cam, Lens(FOCUS, aperture), RenderSettings(), count=True)
+                row.update(time_frames(r, cam, Lens(FOCUS, aperture), PER_SPLAT, frames))
+                r.draw(cam, Lens(FOCUS, aperture), PER_SPLAT, count=True)
                 row["drawn"] = r.stats.drawn
                 rows.append(row)
                 bar.update(len(rows))
@@ -320,7 +324,6 @@ def quad_fragments(pr: dict, width: int, height: int, shape: str) -> np.ndarray:
 
 def measure_fragments(n: int, size: tuple[int, int]) -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
-    from dofview.frame import RenderSettings
     from dofview.lens import Lens
     from dofview.rendering import get_backend
     from dofview.rendering.reference import project
@@ -331,8 +334,8 @@ def measure_fragments(n: int, size: tuple[int, int]) -> dict:
     rows = []
     for aperture in (0.0, 100.0):
         lens = Lens(FOCUS, aperture)
-        for shape, settings in (("3sigma", RenderSettings(tau=0.0)), ("tight", RenderSettings(tau=0.0)),
-                                ("tight", RenderSettings())):
+        for shape, settings in (("3sigma", replace(PER_SPLAT, tau=0.0)), ("tight", replace(PER_SPLAT, tau=0.0)),
+                                ("tight", PER_SPLAT)):
             pr = project(scene, cam, lens, settings)
             frags = quad_fragments(pr, cam.width, cam.height, shape)
             row = {"aperture": aperture, "shape": shape, "tau": settings.tau,
@@ -350,7 +353,6 @@ def measure_fragments(n: int, size: tuple[int, int]) -> dict:
 
 def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3, raster: str = "quad") -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
-    from dofview.frame import RenderSettings
     from dofview.lens import Lens
     from dofview.rendering import get_backend
     from dofview.rendering.gl import headless_context
@@ -366,9 +368,9 @@ def measure_frames(sizes: tuple[int, ...], frames: int, degree: int = 3, raster:
                 lens = Lens(FOCUS, aperture)
                 row = {"count": n, "degree": degree, "aperture": aperture}
                 r.forget_order()  # one fresh sort, so that its time is the one reported
-                row.update(time_frames(r, cam, lens, RenderSettings(), frames))
+                row.update(time_frames(r, cam, lens, PER_SPLAT, frames))
                 row["sort_ms"] = r.stats.sort_ms
-                r.draw(cam, lens, RenderSettings(), count=True)
+                r.draw(cam, lens, PER_SPLAT, count=True)
                 row["drawn"] = r.stats.drawn
                 row["bytes_per_gaussian"] = r.bytes_per_gaussian
                 rows.append(row)
@@ -384,7 +386,6 @@ def measure_bottleneck(n: int, frames: int, raster: str = "quad") -> dict:
     """What limits the frame: time at A = 0 as the image shrinks (fragment work falls with the pixel
     count, vertex work stays) down to 64×36 (≈ vertex work alone), for SH degree 3 and 0."""
     from dofview.bench.synth import benchmark_camera, random_scene
-    from dofview.frame import RenderSettings
     from dofview.lens import Lens
     from dofview.rendering import get_backend
 
@@ -396,7 +397,7 @@ def measure_bottleneck(n: int, frames: int, raster: str = "quad") -> dict:
             for w, h in sizes:
                 cam = benchmark_camera(w, h)
                 row = {"count": n, "degree": degree, "size": [w, h]}
-                row.update(time_frames(r, cam, Lens(FOCUS, 0.0), RenderSettings(), frames))
+                row.update(time_frames(r, cam, Lens(FOCUS, 0.0), PER_SPLAT, frames))
                 rows.append(row)
                 bar.update(len(rows), info=f"degree {degree} {w}×{h}")
             r.release()

@@ -4,11 +4,12 @@ pinhole average they replaced (issue 23).
 For each real scene (one study view, study.py) and each largest blur in view (8 and 16 px,
 sliced_study.cases_for): the PSNR of the display image against the physical truth (the
 linear-light average of ``--samples`` pinhole images, variants.make_references) of
-- the anchors' single pass (energy normalisation, τ = 1/255, k = 1/9, 1/4, 1) — the best of them is
-  the figure to beat —,
+- the anchors' single pass (per-splat, energy normalisation, τ = 1/255, k = 1/9, 1/4, 1) — the
+  best of them is the figure to beat — and the default single pass (sliced),
 - the pinhole-average refinement (N pinhole passes at the R2 points of disk_sequence, τ = 0),
-- the stage refinement (N passes of the sub-aperture A/√N at progressive.stage_points, default
-  settings: ``dofview render --lens-samples N``), and that with other lens points (spread, layout).
+- the stage refinement of the default (N lens cells, each blurred by its own shape:
+  ``dofview render --lens-samples N``) and of the per-splat mode (N passes of the sub-aperture
+  A/√N at progressive.stage_points).
 
     python -m dofview.bench.refinement --scenes DIR [--width 240] [--samples 64] [--only NAME]
         [--plot docs/images/refinement.png] [--ghosts docs/images/refinement_ghosts.png]
@@ -34,13 +35,11 @@ from dofview.frame import Frame, RenderSettings
 from dofview.lens import Lens
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.accumulate import accumulate
-from dofview.rendering.progressive import SPREAD, pass_settings, render_lens_samples
+from dofview.rendering.progressive import pass_settings, render_lens_samples
 from dofview.tonemap import Tonemap
 from dofview.tonemap.display import display
 
 COUNTS = (2, 4, 8, 16)
-OTHER_POINTS = {"stages, spread 0.9": {"spread": 0.9}, "stages, sunflower points": {"layout": "sunflower"}}
-"""Lens points measured beside the default (CVT centroids at progressive.SPREAD), at N = 4 and 8."""
 GHOST_N = 4
 
 
@@ -77,17 +76,16 @@ def study_case(renderer: Renderer, camera, lens: Lens, samples: int,
         rows.append((name, 1, p))
         if best is None or p > best[1]:
             best, frames["best anchor"] = (name, p), f
+    rows.append(("sliced", 1, errors(renderer.render(camera, lens, RenderSettings()), truth, tm, False)["psnr"]))
     for n in COUNTS:
         f_old = pinhole_average(renderer, camera, lens, n)
         f_new = render_lens_samples(renderer, camera, lens, RenderSettings(), n)
+        f_splat = render_lens_samples(renderer, camera, lens, RenderSettings(dof="splat"), n)
         rows.append(("pinhole average", n, errors(f_old, truth, tm, False)["psnr"]))
         rows.append(("stages", n, errors(f_new, truth, tm, False)["psnr"]))
+        rows.append(("per-splat stages", n, errors(f_splat, truth, tm, False)["psnr"]))
         if n == GHOST_N:
             frames["pinhole average"], frames["stages"] = f_old, f_new
-    for name, kw in OTHER_POINTS.items():
-        for n in (4, 8):
-            f = render_lens_samples(renderer, camera, lens, RenderSettings(), n, **kw)
-            rows.append((name, n, errors(f, truth, tm, False)["psnr"]))
     return rows, frames
 
 
@@ -106,13 +104,14 @@ def plot(path: Path, table: dict[tuple[str, str], list[tuple[str, int, float]]],
                 continue
             ls = "-" if case == "blur16" else "--"
             best = max(p for m, _, p in rows if m in ANCHOR_KS)
-            ax.axhline(best, color="grey", ls=ls, lw=1, label=f"best single pass, {case}")
-            for method, colour in (("pinhole average", "tab:red"), ("stages", "tab:blue")):
-                pts = [(n, p) for m, n, p in rows if m == method]
+            ax.axhline(best, color="grey", ls=ls, lw=1, label=f"best per-splat single pass, {case}")
+            for method, colour in (("pinhole average", "tab:red"), ("per-splat stages", "tab:green"),
+                                   ("stages", "tab:blue")):
+                pts = [(n, p) for m, n, p in rows if m == method or (method == "stages" and m == "sliced")]
                 ax.plot([n for n, _ in pts], [p for _, p in pts], ls, marker="o", ms=3, color=colour,
                         label=f"{method}, {case}")
         ax.set_xscale("log", base=2)
-        ax.set_xticks(COUNTS, [str(n) for n in COUNTS])
+        ax.set_xticks((1, *COUNTS), [str(n) for n in (1, *COUNTS)])
         ax.set_xlabel("N (passes)")
         ax.set_title(scene, fontsize=9)
         ax.grid(alpha=0.3)
@@ -133,7 +132,7 @@ def ghost_figure(path: Path, frames: dict[str, Frame], rows: list[tuple[str, int
 
     psnr = {m: p for m, n, p in rows if n == GHOST_N}
     best = max((p, m) for m, n, p in rows if m in ANCHOR_KS)
-    labels = {"truth": "thin lens (truth)", "best anchor": f"single pass {best[1]}: {best[0]:.2f} dB",
+    labels = {"truth": "thin lens (truth)", "best anchor": f"per-splat {best[1]}: {best[0]:.2f} dB",
               "pinhole average": f"pinhole average N={GHOST_N}: {psnr['pinhole average']:.2f} dB",
               "stages": f"stages N={GHOST_N}: {psnr['stages']:.2f} dB"}
     panels = []
@@ -186,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"# {name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     if args.plot:
         plot(args.plot, table, f"progressive thin lens against the physical truth ({args.samples} pinhole passes), "
-                               f"{args.width}x{h}, spread {SPREAD:g}")
+                               f"{args.width}x{h}")
     return 0
 
 

@@ -46,13 +46,15 @@ def _setting_name(r: dict) -> str:
     if r["method"].endswith("-reference"):
         space = "display-encoded" if r["method"].startswith("encoded") else "linear-blend"
         return f"{space} reference (floor)"
-    s = f"τ={_tau_name(r['tau'])} k={_k_name(r['k'])} {r['opacity_norm']}"
+    if r["dof"] == "sliced":
+        return f"sliced τ={_tau_name(r['tau'])}" + (" linear-blend" if r["blend_linear"] else "")
+    s = f"per-splat τ={_tau_name(r['tau'])} k={_k_name(r['k'])} {r['opacity_norm']}"
     return s + (" linear-blend" if r["blend_linear"] else "")
 
 
 def _same(r: dict, st: RenderSettings) -> bool:
     return (r["tau"] == st.tau and r["k"] == st.k and r["opacity_norm"] == st.opacity_norm
-            and r["blend_linear"] == st.blend_linear)
+            and r["blend_linear"] == st.blend_linear and r["dof"] == st.dof)
 
 
 def _table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -224,8 +226,10 @@ def _error_tables(errs: list[dict], cfg, base: RenderSettings, result: dict) -> 
                   "pass)", ""] + _table(head, body) + [""]
 
     # the study's summaries: k × normalisation, τ, blend space
-    sp = [r for r in errs if r["method"] == "single-pass" and not r["blend_linear"] and r["tau"] == base.tau]
-    lines += ["### k × opacity normalisation (τ default, display-encoded blend): mean PSNR matched / physical", ""]
+    sp = [r for r in errs if r["method"] == "single-pass" and not r["blend_linear"] and r["tau"] == base.tau
+          and r["dof"] == "splat"]
+    lines += ["### Per-splat mode, k × opacity normalisation (τ default, display-encoded blend): mean PSNR "
+              "matched / physical", ""]
     body = []
     for k in cfg.ks:
         for n in cfg.norms:
@@ -235,15 +239,17 @@ def _error_tables(errs: list[dict], cfg, base: RenderSettings, result: dict) -> 
                                            for a in aps] + [_fmt(_mean(sel, "psnr"))])
     lines += _table(["k", "norm"] + [f"A={a:.3g}" for a in aps] + ["mean matched"], body) + [""]
 
-    lines += ["### τ: error added against time saved (k, normalisation default)", ""]
+    lines += ["### Per-splat mode, τ: error added against time saved (k, normalisation default)", ""]
     body = []
     for t in cfg.taus:
         row = [_tau_name(t)]
         for a in aps:
             sel = [r for r in errs if r["method"] == "single-pass" and r["aperture"] == a and r["tau"] == t
-                   and r["k"] == base.k and r["opacity_norm"] == base.opacity_norm and not r["blend_linear"]]
+                   and r["k"] == base.k and r["opacity_norm"] == base.opacity_norm and not r["blend_linear"]
+                   and r["dof"] == "splat"]
             z = [r for r in errs if r["method"] == "single-pass" and r["aperture"] == a and r["tau"] == 0.0
-                 and r["k"] == base.k and r["opacity_norm"] == base.opacity_norm and not r["blend_linear"]]
+                 and r["k"] == base.k and r["opacity_norm"] == base.opacity_norm and not r["blend_linear"]
+                 and r["dof"] == "splat"]
             row.append(f"{_fmt(_mean(sel, 'time_ms') / _mean(z, 'time_ms'))}× / {_fmt(_mean(sel, 'psnr'))} dB"
                        if sel and z else "–")
         body.append(row)
@@ -251,11 +257,11 @@ def _error_tables(errs: list[dict], cfg, base: RenderSettings, result: dict) -> 
     lines += _table(["τ"] + [f"A={a:.3g}" for a in aps], body) + [""]
 
     if result["encoded"]:
-        lines += ["### Blend colour space (defaults otherwise): PSNR matched / physical", ""]
+        lines += ["### Per-splat mode, blend colour space (defaults otherwise): PSNR matched / physical", ""]
         body = []
         for lin in (False, True):
             sel = [r for r in errs if r["method"] == "single-pass" and _same(r, RenderSettings(
-                tau=base.tau, k=base.k, opacity_norm=base.opacity_norm, blend_linear=lin))]
+                tau=base.tau, k=base.k, opacity_norm=base.opacity_norm, blend_linear=lin, dof="splat"))]
             body.append(["linear" if lin else "display-encoded"] +
                         [f"{_fmt(_mean([r for r in sel if r['aperture'] == a], 'psnr'))} / "
                          f"{_fmt(_mean([r for r in sel if r['aperture'] == a], 'psnr_physical'))}" for a in aps])

@@ -172,7 +172,7 @@ def run_bench(scene: GaussianScene, cameras: list[Camera], cfg: BenchConfig, bas
 
     jobs_by_view: list[list[Job]] = []
     for v, fs in enumerate(focuses):
-        jobs = [Job(v, fs[0], a, replace(base, tau=t)) for a in cfg.grid_apertures for t in cfg.taus]
+        jobs = [Job(v, fs[0], a, replace(base, tau=t, dof="splat")) for a in cfg.grid_apertures for t in cfg.taus]
         jobs.append(Job(v, fs[0], 0.0, pin))
         jobs += [Job(v, f, a, st) for f in fs for a in cfg.apertures for st in variants]
         jobs_by_view.append(list(dict.fromkeys(jobs)))

@@ -71,13 +71,15 @@ class Job:
 
 
 def settings_variants(base: RenderSettings, cfg: BenchConfig, encoded: bool) -> list[RenderSettings]:
-    """The single-pass settings studied at each aperture: k × opacity normalisation at the base τ,
-    each τ at the base k and normalisation, and linear blending (display-encoded scenes only)."""
-    out = [replace(base, k=k, opacity_norm=n) for k in cfg.ks for n in cfg.norms]
-    out += [replace(base, tau=t) for t in cfg.taus]
+    """The single-pass settings studied at each aperture: the base (the default mode, sliced), and
+    of the per-splat mode k × opacity normalisation at the base τ, each τ at the base k and
+    normalisation, and linear blending (display-encoded scenes only)."""
+    splat = replace(base, dof="splat")
+    out = [replace(splat, k=k, opacity_norm=n) for k in cfg.ks for n in cfg.norms]
+    out += [replace(splat, tau=t) for t in cfg.taus]
     if encoded:
-        out.append(replace(base, blend_linear=not base.blend_linear))
-    return list(dict.fromkeys([base] + out))
+        out.append(replace(splat, blend_linear=not base.blend_linear))
+    return list(dict.fromkeys([base, splat] + out))
 
 
 # ---- references and error ------------------------------------------------------------------------
@@ -97,9 +99,10 @@ class References:
 
 
 def pinhole_settings(base: RenderSettings, blend_linear: bool = False) -> RenderSettings:
-    """Settings of the reference's pinhole renders: τ = 0 (nothing dropped); k and the opacity
-    normalisation do nothing at aperture 0."""
-    return replace(base, tau=0.0, blend_linear=blend_linear)
+    """Settings of the reference's pinhole renders: τ = 0 (nothing dropped), one splatting pass (at
+    aperture 0 the sliced mode is that pass, with more work); k and the opacity normalisation do
+    nothing at aperture 0."""
+    return replace(base, tau=0.0, blend_linear=blend_linear, dof="splat")
 
 
 def make_references(renderer: Renderer, camera: Camera, lens: Lens, base: RenderSettings, samples: int,

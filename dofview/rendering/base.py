@@ -30,6 +30,7 @@ from dofview.rendering.display import DisplayPass
 from dofview.errors import BackendUnavailable
 from dofview.rendering.gl import GL_REQUIRED, check_size, float32_uniform, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
+from dofview.rendering.slices import Layer, LensCell, SliceRule
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, decode
 from dofview.tonemap.stats import Stats
@@ -83,6 +84,9 @@ class Renderer(ABC):
         self.camera: Camera | None = None
         self.lens: Lens | None = None
         self._sliced = None  # rendering/sliced.py's SlicedDof, made by the first sliced draw
+        self.slice_rule: SliceRule | None = None
+        """The sliced mode's slicing (slices.SliceRule); None: slices.rule_for the aperture (the
+        benchmark compares others)."""
 
     @classmethod
     def require(cls, ctx: moderngl.Context, count: int = 0) -> None:
@@ -98,6 +102,16 @@ class Renderer(ABC):
         """The scene's blended values are display-encoded (``scene.colour_space``, which the viewer
         lets the user change, is read at each draw)."""
         return self.scene.colour_space == "srgb"
+
+    @property
+    def sliced_layers(self) -> list[Layer]:
+        """The layers of the last sliced draw (slices.plan_layers), front to back."""
+        return self._sliced.layers if self._sliced is not None else []
+
+    @property
+    def sliced_bytes(self) -> int:
+        """GPU bytes of the sliced mode's targets as now allocated (0 before its first draw)."""
+        return self._sliced.gpu_bytes if self._sliced is not None else 0
 
     @property
     def targets_encoded(self) -> bool:
@@ -154,10 +168,12 @@ class Renderer(ABC):
 
     # ---- drawing: the template and the backend's part ---------------------------------------
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings = RenderSettings(),
-             count: bool = False) -> None:
+             count: bool = False, cell: LensCell | None = None) -> None:
         """Splat the scene into ``colour_tex``/``depth_tex`` (no read-back), sorted for ``camera``
         unless its order was asked for with :meth:`request_order` and is still on its way (then with
-        the last order). ``count``: also count the Gaussians drawn into ``stats.drawn``."""
+        the last order). ``count``: also count the Gaussians drawn into ``stats.drawn``. ``cell``:
+        the part of the lens the sliced mode blurs with (progressive refinement's passes; None: the
+        whole aperture); the per-splat mode has no kernel shape and refuses one."""
         self._targets(camera.width, camera.height)
         self._order_for(camera)
         self.camera, self.lens = camera, lens
@@ -168,8 +184,10 @@ class Renderer(ABC):
                 from dofview.rendering.sliced import SlicedDof  # its shaders compile on first use
 
                 self._sliced = SlicedDof(self)
-            self._sliced.draw(camera, lens, settings, count)
+            self._sliced.draw(camera, lens, settings, count, cell)
         else:
+            if cell is not None:
+                raise ValueError("the per-splat mode blurs with no lens cell")
             self._splat(camera, lens, settings, count)
         self._encoded = self.encoded_scene and not settings.blend_linear
         if count:
@@ -179,6 +197,7 @@ class Renderer(ABC):
         """The splatting step: the whole scene, in the current order, into :attr:`fbo`'s targets
         (sized for ``camera``); ``count``: add the Gaussians drawn to the zeroed ``_counter``."""
         self._prepare(camera, lens, settings, count)
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0)
         self._splat_range(0, self.scene.count, self.fbo)
 
     @abstractmethod
@@ -187,9 +206,13 @@ class Renderer(ABC):
         calls that follow (``count``: they add the Gaussians drawn to ``_counter``)."""
 
     @abstractmethod
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer) -> None:
+    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                     box: tuple[int, int, int, int] | None = None) -> None:
         """Blend Gaussians [first, end) of the front-to-back order, as :meth:`_prepare` set up, into
-        ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized; cleared first)."""
+        ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized), whose pixels
+        the caller cleared. ``box``: (x0, y0, x1, y1) image pixels (rows from the top, ends
+        exclusive) outside which the range draws nothing (None: anywhere); a backend may write
+        the whole tiles around it."""
 
     @abstractmethod
     def front_to_back(self) -> np.ndarray:

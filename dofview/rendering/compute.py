@@ -119,6 +119,9 @@ class ComputeBackend(Renderer):
         """Depth slices the last draw needed (1 unless its pairs exceeded :attr:`max_pairs`)."""
         self._tiles = (0, 0)  # tiles across and down of the frame being drawn
         self._tau = 0.0
+        self._binned = False  # the pairs of the last _prepare are made and sorted (one buffer holds them)
+        self._vals: moderngl.Buffer | None = None  # the sorted pairs' ranks
+        self._passes: tuple[int, int] | None = None  # (splats a blend pass takes, the longest tile) where loops are limited
 
     @property
     def gpu_bytes(self) -> int:
@@ -166,33 +169,58 @@ class ComputeBackend(Renderer):
 
     # ---- drawing -------------------------------------------------------------------------------
     def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
-        """Preprocess and scan the tile counts of all Gaussians (no read-back but the pair totals)."""
+        """Preprocess and scan the tile counts of all Gaussians (no read-back but the pair totals);
+        the pairs are made and sorted by the first :meth:`_splat_range` that follows."""
         self._tiles = (-(-camera.width // self.tile), -(-camera.height // self.tile))
         self._tau = settings.tau
         self.pairs = 0
+        self._binned = False
         if self.scene.count:
             self._preprocess(camera, lens, settings, count, self._tiles)
             self.pairs = self._scan_counts(self.scene.count)
         self._ranges_for(self._tiles)
 
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer) -> None:
-        """Rasterise Gaussians [first, end) of the depth order into ``target``'s textures (the pair
-        offsets of a range short of the whole order come back: 8 bytes)."""
-        n = self.scene.count
-        if (first, end) == (0, n):
-            base, pairs = 0, self.pairs
-        elif end > first:
+    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                     box: tuple[int, int, int, int] | None = None) -> None:
+        """Rasterise Gaussians [first, end) of the depth order into ``target``'s textures, writing
+        the whole tiles that cover ``box`` (image pixels (x0, y0, x1, y1), rows from the top; None:
+        the frame). When all pairs fit one buffer they are made and sorted once per
+        :meth:`_prepare` and every range blends its part of each tile's list; otherwise the range
+        is drawn in depth slices, each binned on its own (its pair offsets come back: 8 bytes)."""
+        colour, depth = target.color_attachments[:2]
+        colour.bind_to_image(0, read=True, write=True)
+        depth.bind_to_image(1, read=True, write=True)
+        tiles = self._tile_rect(box)
+        if self.pairs <= self.max_pairs:
+            if not self._binned:
+                self._bin(0, self.scene.count, 0, self.pairs)
+                self._binned = True
+            self.slices = 1
+            self._blend_window(first, end, tiles, resume=False)
+            return
+        if end > first:
             base = int(np.frombuffer(self._offsets.read(size=4, offset=4 * first), np.uint32)[0])
             pairs = int(np.frombuffer(self._offsets.read(size=4, offset=4 * end), np.uint32)[0]) - base
         else:
             base = pairs = 0
         slices = self._slices(first, end, base, pairs) if pairs else [(first, first, 0, 0)]
         self.slices = len(slices)
-        colour, depth = target.color_attachments[:2]
-        colour.bind_to_image(0, read=True, write=True)
-        depth.bind_to_image(1, read=True, write=True)
-        for i, part in enumerate(slices):
-            self._draw_slice(*part, self._tiles, self._tau, resume=i > 0)
+        for i, (s_first, s_end, s_base, s_pairs) in enumerate(slices):
+            self._bin(s_first, s_end, s_base, s_pairs)
+            colour.bind_to_image(0, read=True, write=True)
+            depth.bind_to_image(1, read=True, write=True)
+            self._blend_window(s_first, s_end, tiles, resume=i > 0)
+
+    def _tile_rect(self, box: tuple[int, int, int, int] | None) -> tuple[int, int, int, int]:
+        """The tiles (tx0, ty0, tx1, ty1), rows of tiles from the bottom as the targets store them,
+        that cover ``box`` (image pixels, rows from the top; None: all)."""
+        tx, ty = self._tiles
+        if box is None:
+            return 0, 0, tx, ty
+        height = self.camera.height
+        x0, y0, x1, y1 = box
+        return (x0 // self.tile, (height - y1) // self.tile, min(-(-x1 // self.tile), tx),
+                min(-(-(height - y0) // self.tile), ty))
 
     def _preprocess(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
                     tiles: tuple[int, int]) -> None:
@@ -250,9 +278,10 @@ class ComputeBackend(Renderer):
                 self._ranges.release()
             self._ranges = self.ctx.buffer(reserve=size)
 
-    def _draw_slice(self, first: int, end: int, base: int, pairs: int, tiles: tuple[int, int], tau: float,
-                    resume: bool) -> None:
-        """Duplicate, sort and blend Gaussians [first, end) of the depth order (pairs from ``base``)."""
+    def _bin(self, first: int, end: int, base: int, pairs: int) -> None:
+        """Duplicate and sort the pairs of Gaussians [first, end) of the depth order (pairs from
+        ``base``) by tile, and find each tile's range (and, where loops are limited, the longest)."""
+        tiles = self._tiles
         keys, vals, *scratch = self._pair_buffers(max(pairs, self.scene.count, 1))
         if pairs:
             d = self._dup
@@ -270,6 +299,7 @@ class ComputeBackend(Renderer):
                 self.ctx.memory_barrier()
             bits = max((tiles[0] * tiles[1] - 1).bit_length(), 1)
             keys, vals = self.sorter.sort(keys, vals, pairs, bits, *scratch)
+        self._vals = vals
         self._ranges.clear()
         if pairs:
             keys.bind_to_storage_buffer(0)
@@ -277,20 +307,30 @@ class ComputeBackend(Renderer):
             self._ranges_prog["u_n"].value = pairs
             self._ranges_prog.run(*groups(-(-pairs // 256)))
             self.ctx.memory_barrier()
-        b = self._blend
-        b["u_tau"].value = tau
-        b["u_size"].value = (self.camera.width, self.camera.height)
-        b["u_tiles_x"].value = tiles[0]
         take = self.loop_limit // (self.pix ** 2 + 1) if self.loop_limit is not None else None  # splats a pass
-        run = take if take is not None and pairs > take else None
-        b["u_take"].value = run or 0xFFFFFFFF
-        for skip in range(0, self._longest_range(tiles) if run else 1, run or 1):
+        self._passes = (take, self._longest_range(tiles)) if take is not None and pairs > take else None
+
+    def _blend_window(self, first: int, end: int, tiles: tuple[int, int, int, int], resume: bool) -> None:
+        """Blend the binned pairs of ranks [first, end) into the bound targets, in ``tiles``."""
+        tx0, ty0, tx1, ty1 = tiles
+        if tx1 <= tx0 or ty1 <= ty0:
+            return
+        b = self._blend
+        b["u_tau"].value = self._tau
+        b["u_size"].value = (self.camera.width, self.camera.height)
+        b["u_tiles_x"].value = self._tiles[0]
+        b["u_window"].value = (first, end)
+        b["u_tile_origin"].value = (tx0, ty0)
+        take, longest = self._passes or (None, 1)
+        b["u_take"].value = take or 0xFFFFFFFF
+        for skip in range(0, longest, take or 1):
             b["u_skip"].value = skip
             b["u_resume"].value = resume or skip > 0
             self._splats.bind_to_storage_buffer(0)
-            vals.bind_to_storage_buffer(1)
+            self._vals.bind_to_storage_buffer(1)
             self._ranges.bind_to_storage_buffer(2)
-            b.run(*tiles)
+            self._order.bind_to_storage_buffer(3)
+            b.run(tx1 - tx0, ty1 - ty0)
             self.ctx.memory_barrier()
 
     def _longest_range(self, tiles: tuple[int, int]) -> int:

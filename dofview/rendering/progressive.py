@@ -2,12 +2,14 @@
 
 A thin lens is the average of pinhole images over the lens disk in linear light (accumulate.py).
 Averaging a few pinhole passes shows each one as a sharp ghost of the others, so here the N passes of
-a stage each see the scene through their own share of the lens: pass i is the camera moved to lens
-point p_i (:func:`stage_points`) and drawn with the single-pass depth of field of the sub-aperture
-A/√N (:func:`sub_lens`, the CoC of a disk of 1/N of the lens's area), with whatever settings the
-single pass has. N = 1 is the single pass itself; every N is a complete depth-of-field image; as N
-grows the sub-apertures shrink to points and the stage becomes the accumulation buffer, the exact
-lens. The viewer refines in stages N = 1, 2, 4, 8, … (:func:`next_stage`) and keeps showing the last
+a stage each see the scene through their own share of the lens. In the sliced mode (the default)
+the lens is cut into N cells (:func:`lens_cells`): pass i is the camera moved to cell i's centroid
+and blurred by the cell's own shape at each pixel's CoC (slices.LensCell), weighed by its share, so
+the passes add up to the whole lens exactly. In the per-splat mode, which has no kernel shape, pass
+i is seen from lens point p_i (:func:`stage_points`) with the single-pass depth of field of the
+sub-aperture A/√N (:func:`sub_lens`, the CoC of a disk of 1/N of the lens's area). N = 1 is the
+single pass itself; every N is a complete depth-of-field image; as N grows the cells shrink to
+points and the stage becomes the accumulation buffer, the exact lens. The viewer refines in stages N = 1, 2, 4, 8, … (:func:`next_stage`) and keeps showing the last
 complete stage while the next one accumulates, one pass per still frame; ``dofview render
 --lens-samples N`` renders stage N alone, the very image the viewer shows once it reached N.
 Passes are summed on the GPU in two float targets (decoded colour, and the depth sums Σw·z, Σw/z,
@@ -31,6 +33,7 @@ from dofview.lens import Lens
 from dofview.rendering.accumulate import lens_samples
 from dofview.rendering.base import Renderer
 from dofview.rendering.gl import load_shader
+from dofview.rendering.slices import Aperture, LensCell
 
 SPREAD = 1.0
 """RMS radius of a stage's lens points over the one that gives the stage the lens's second moment
@@ -74,6 +77,51 @@ def stage_points(n: int, spread: float = SPREAD, layout: str = "cvt") -> np.ndar
     p -= p.mean(axis=0)
     ms = float(np.mean(np.sum(p * p, axis=1)))
     return p * (spread * math.sqrt((1.0 - 1.0 / n) / 2.0 / ms)) if ms > 0 else p
+
+
+CELL_GRID = 512
+"""Samples across the lens's diameter that measure each lens cell (its share, centroid, neighbours
+and reach): a 512 × 512 grid, ≈ 206k points on the disk."""
+
+
+@functools.lru_cache(maxsize=32)
+def lens_cells(n: int, blades: int = 0, rotation: float = 0.0) -> tuple[LensCell, ...]:
+    """The sliced mode's stage of ``n`` passes: the aperture (a disk, or ``blades`` ≥ 3 corners,
+    the first ``rotation`` radians from +x) cut into the Voronoi cells of n generators (the CVT of
+    the disk up to :data:`CVT_MAX`, the sunflower beyond), each cell a pass seen from its centroid
+    and blurred by its own shape (slices.LensCell), weighed by its share of the lens: the passes
+    add up to the whole lens exactly, so every stage is a complete depth-of-field image, from the
+    single pass (n = 1: the whole aperture) to the accumulation buffer (n → ∞). A generator whose
+    cell misses a polygon aperture has no pass."""
+    aperture = Aperture(blades, rotation)
+    if n == 1:
+        return (aperture.whole(),)
+    gen = _cvt(n) if n <= CVT_MAX else lens_samples(n)
+    step = 2.0 / CELL_GRID
+    g = (np.arange(CELL_GRID) + 0.5) * step - 1.0
+    u = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    u = u[aperture.inside(u)]
+    dist = np.sum(gen * gen, axis=1)[None, :] - 2.0 * u @ gen.T  # |u − g|² less |u|²: the same order
+    two = np.argpartition(dist, 1, axis=1)[:, :2]
+    first = np.take_along_axis(dist, two, 1).argmin(axis=1)
+    own, second = two[np.arange(len(u)), first], two[np.arange(len(u)), 1 - first]
+    cells = []
+    for i in range(len(gen)):
+        mine = own == i
+        if not mine.any():
+            continue
+        point = u[mine].mean(axis=0)
+        planes = []
+        for j in np.unique(second[mine]):
+            normal = gen[j] - gen[i]
+            length = float(np.hypot(*normal))
+            normal = normal / length
+            planes.append((normal[0], normal[1], float(normal @ (0.5 * (gen[i] + gen[j])))))
+        reach = float(np.max(np.hypot(*(u[mine] - point).T))) + step
+        cells.append(LensCell(np.concatenate([np.array(planes).reshape(-1, 3), aperture.planes()]),
+                              not blades, point, float(mine.mean()), reach))
+    total = sum(c.share for c in cells)
+    return tuple(replace(c, share=c.share / total) for c in cells)
 
 
 def sub_lens(lens: Lens, n: int) -> Lens:
@@ -175,14 +223,23 @@ class ProgressiveLens:
         self._targets((camera.width, camera.height))
         if stage != self._stage:
             self._stage, self._done = stage, 0
-        u, v = stage_points(stage, self.spread, self.layout)[self._done] * (0.5 * lens.diameter(camera.fx))
-        r.draw(camera.lens_shifted(float(u), float(v), lens.focus), sub_lens(lens, stage), settings)
+        radius = 0.5 * lens.diameter(camera.fx)
+        if settings.dof == "sliced":  # the stage's lens cells, each blurred by its own shape
+            cells = lens_cells(stage, settings.blades, math.radians(settings.blade_rotation))
+            cell = cells[self._done]
+            u, v = cell.point * radius
+            r.draw(camera.lens_shifted(float(u), float(v), lens.focus), lens, settings, cell=cell)
+            weight, passes = cell.share, len(cells)
+        else:  # per-splat: points spread over the lens, each blurred by a disk of its share
+            u, v = stage_points(stage, self.spread, self.layout)[self._done] * radius
+            r.draw(camera.lens_shifted(float(u), float(v), lens.focus), sub_lens(lens, stage), settings)
+            weight, passes = 1.0 / stage, stage
         if self._done == 0:
             self._acc_fbo.clear(0.0, 0.0, 0.0, 0.0)
-        self._copy((r.colour_tex, r.depth_tex), self._acc_fbo, 1.0, decode=r.targets_encoded, add=True)
+        self._copy((r.colour_tex, r.depth_tex), self._acc_fbo, weight, decode=r.targets_encoded, add=True)
         self._done += 1
-        if self._done == stage:  # complete: the average, linear light, is the stage shown
-            self._copy(tuple(self._acc), self._shown_fbo, 1.0 / stage)
+        if self._done == passes:  # complete: the weighted average, linear light, is the stage shown
+            self._copy(tuple(self._acc), self._shown_fbo, 1.0)
             self._shown_encoded = False
             self._view = camera, lens
             self.samples, self._stage, self._done = stage, 0, 0
@@ -217,10 +274,13 @@ def render_lens_samples(renderer: Renderer, camera: Camera, lens: Lens, settings
         raise ValueError("samples must be ≥ 1")
     acc = ProgressiveLens(renderer, spread, layout)
     try:
-        for i in range(samples):
-            acc.add(camera, lens, settings, samples)
+        done = 0
+        while acc.add(camera, lens, settings, samples) != samples:  # a stage may have fewer passes (lens_cells)
+            done += 1
             if progress:
-                progress(i + 1, samples)
+                progress(done, samples)
+        if progress:
+            progress(samples, samples)
         acc.show()
         return renderer.read()
     finally:

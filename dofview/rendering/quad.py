@@ -114,13 +114,13 @@ class QuadBackend(Renderer):
         set_projection_uniforms(p, camera, lens, settings)
         p["u_count"].value = count
 
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer) -> None:
+    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                     box: tuple[int, int, int, int] | None = None) -> None:
         self._bind_scene()
         self._order.bind_to_storage_buffer(3)
         self._counter.bind_to_storage_buffer(4)
         target.use()
         self.ctx.viewport = (0, 0, *target.size)
-        target.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA

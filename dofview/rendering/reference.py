@@ -29,8 +29,8 @@ from dofview.lens import (
     kernel_shape,
     normalise_opacity,
 )
-from dofview.rendering.sliced import COMPOSITE, full_radius_limit, plan_layers
-from dofview.rendering.slices import sliced_image, to_blend_space
+from dofview.rendering.depth_order import camera_depths
+from dofview.rendering.slices import Aperture, LensCell, SliceRule, from_blend_space, plan_layers, rule_for, sliced_image
 from dofview.scene import SH_C0, GaussianScene
 from dofview.tonemap import decode
 
@@ -129,17 +129,39 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
 
 
 def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
-                     settings: RenderSettings = RenderSettings(), tile: int = 16,
+                     settings: RenderSettings = RenderSettings(dof="splat"), tile: int = 16,
                      margins: bool = False) -> Frame | tuple[Frame, np.ndarray]:
-    """Render ``scene`` on the CPU. Cost ~ pixels × Gaussians per tile: keep images small.
+    """Render ``scene`` on the CPU with per-splat depth of field (``settings.dof`` is not read:
+    :func:`render_reference_sliced` is the sliced mode). Cost ~ pixels × Gaussians per tile: keep
+    images small.
 
     With ``margins=True`` also returns an (H, W) bool mask of the pixels where some Gaussian sits
     within 1e-5 (relative) of a cut (α = τ, or dᵀΣ⁻¹d = 9 when τ = 0): there a float32 renderer
     may legitimately decide the other way, so comparisons can leave those pixels out.
     """
+    blend, sums, near_cut = _blend(scene, camera, lens, settings, tile, margins)
+    encoded = scene.colour_space == "srgb" and not settings.blend_linear
+    frame = _frame(blend, sums, encoded)
+    return (frame, near_cut) if margins else frame
+
+
+def _frame(blend: np.ndarray, sums: np.ndarray, encoded: bool) -> Frame:
+    """A Frame from the blend-space premultiplied colour (H, W, 4) and the depth sums (H, W, 4)
+    (Σw·z, Σw/z, 0, Σw) of a blend."""
+    rgba = from_blend_space(blend, encoded)
+    inv = depth_from_weighted(sums[..., 1], sums[..., 3])
+    focus = np.where(inv > 0, 1.0 / np.maximum(inv, 1e-30), 0.0).astype(np.float32)
+    return Frame(rgba=rgba, depth=depth_from_weighted(sums[..., 0], sums[..., 3]), encoded=encoded,
+                 focus_depth=focus)
+
+
+def _blend(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSettings, tile: int,
+           margins: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The exact front-to-back blend: (H, W, 4) float64 premultiplied colour in the blend space
+    and coverage, (H, W, 4) float64 depth sums (Σw·z, Σw/z, 0, Σw), and the near-cut mask of
+    :func:`render_reference`."""
     w, h = camera.width, camera.height
     pr = project(scene, camera, lens, settings)
-    encoded = scene.colour_space == "srgb" and not settings.blend_linear
     colour = sh_colour(scene, camera.centre, pr["idx"])
     if settings.blend_linear:
         colour = decode(colour)
@@ -153,7 +175,7 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
     qmax = np.where(disk, (2.0 * np.sqrt(np.maximum(1.0 - shape, 0.0)) + 3.0 * sig) ** 2, SUPPORT_MAX)
     lo, hi = pr["mean2d"] - ext, pr["mean2d"] + ext
     out = np.zeros((h, w, 4))
-    zacc = np.zeros((h, w))
+    sums = np.zeros((h, w, 4))
     near_cut = np.zeros((h, w), bool)
     tau = settings.tau
     for y0 in range(0, h, tile):
@@ -183,55 +205,35 @@ def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
             weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
             rgb = weight @ colour[hit]
             a = 1.0 - trans[:, -1]
-            z = weight @ pr["depth"][hit]
+            z = weight @ np.stack([pr["depth"][hit], 1.0 / pr["depth"][hit]], 1)
             out[y0:y1, x0:x1, :3] = rgb.reshape(y1 - y0, x1 - x0, 3)
             out[y0:y1, x0:x1, 3] = a.reshape(y1 - y0, x1 - x0)
-            zacc[y0:y1, x0:x1] = z.reshape(y1 - y0, x1 - x0)
-    rgba = out.astype(np.float32)
-    if encoded:
-        rgba[..., :3] = decode(out[..., :3]).astype(np.float32)
-    frame = Frame(rgba=rgba, depth=depth_from_weighted(zacc, out[..., 3]), encoded=encoded)
-    return (frame, near_cut) if margins else frame
+            sums[y0:y1, x0:x1, :2] = z.reshape(y1 - y0, x1 - x0, 2)
+    sums[..., 3] = out[..., 3]
+    return out, sums, near_cut
 
 
 def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
                             settings: RenderSettings = RenderSettings(dof="sliced"), tile: int = 16,
-                            composite: str = COMPOSITE, share: bool = True) -> Frame:
-    """The sliced mode (rendering/sliced.py) on the CPU: each layer of sliced.plan_layers
-    (``share``: neighbour sharing, as the GL path; else disjoint slices), taken from this
-    reference's own float64 depth order, rendered by :func:`render_reference` as a pinhole (τ = 0)
-    sub-scene, the huge-CoC front and back layers with the lens and ``settings``; a shared layer's
-    split τ is its blend with each splat's share as a grey colour over its coverage (in the blend
-    space). Blurred and composited by slices.sliced_image (``composite``: its mode, default the GL
-    path's). Depth: each layer's under the pinhole transmittance of the layers in front, as the GL
-    path composites it."""
+                            rule: SliceRule | None = None, cell: LensCell | None = None) -> Frame:
+    """The sliced mode (rendering/sliced.py) on the CPU: each layer of slices.plan_layers, taken
+    from this reference's own float64 depth order, blended by :func:`_blend` as a pinhole with the
+    frame's τ (the huge-CoC front and back layers with the lens and ``settings``), then blurred and
+    composited by slices.sliced_image with ``rule`` (default: the GL path's, slices.rule_for) and
+    the kernel of ``cell`` (default: the whole aperture of ``settings``)."""
+    rule = rule or rule_for(settings.blades)
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
     order = np.argsort(z, kind="stable")
-    plan, t = plan_layers(z[order], lens, settings.near, share=share)
-    per_splat, pinhole = replace(settings, dof="splat"), replace(settings, tau=0.0, dof="splat")
+    cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
+    plan = plan_layers(camera_depths(scene.means[order], camera), lens, settings.near, rule, math.sqrt(cell.share))  # as GL
+    per_splat = replace(settings, dof="splat")
     encoded = scene.colour_space == "srgb" and not settings.blend_linear
-    layers, radii, splits = [], [], []
-    for layer in plan:
-        members = order[layer.first:layer.end]
-        sub = scene.subset(members)
-        layers.append(render_reference(sub, camera, lens if layer.lensed else Lens(lens.focus, 0.0),
-                                       per_splat if layer.lensed else pinhole, tile))
-        radii.append(layer.radius)
-        split = None
-        if layer.back_radius is not None:
-            dc = np.repeat(((t[layer.first:layer.end] - 0.5) / SH_C0)[:, None], 3, 1).astype(np.float32)
-            grey = render_reference(replace(sub, sh_dc=dc, sh_rest=None), camera,
-                                    Lens(lens.focus, 0.0), pinhole, tile)
-            weight, alpha = to_blend_space(grey.rgba, encoded)[..., 0], layers[-1].alpha
-            split = (np.where(alpha > 0, np.clip(weight / np.maximum(alpha, 1e-12), 0, 1), 0.0), layer.back_radius)
-        splits.append(split)
-    if not layers:
+    if not plan:  # nothing in front of the near plane
         return render_reference(scene, camera, lens, per_splat, tile)
-    rgba = sliced_image([f.rgba for f in layers], radii, encoded, blades=settings.blades,
-                        rotation=math.radians(settings.blade_rotation),
-                        max_full_radius=full_radius_limit(settings.blades), mode=composite, splits=splits)
-    trans, zsum = np.ones(rgba.shape[:2]), np.zeros(rgba.shape[:2])
-    for f in layers:
-        zsum += trans * f.alpha * f.depth
-        trans *= 1.0 - f.alpha
-    return Frame(rgba=rgba, depth=depth_from_weighted(zsum, 1.0 - trans), encoded=encoded)
+    layers = []
+    for layer in plan:
+        sub = scene.subset(order[layer.first:layer.end])
+        blend, sums, _ = _blend(sub, camera, lens if layer.lensed else Lens(lens.focus, 0.0), per_splat, tile)
+        layers.append((blend, sums))
+    colour, sums = sliced_image(layers, plan, lens, rule, cell)
+    return _frame(colour, sums, encoded)

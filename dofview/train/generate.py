@@ -33,8 +33,10 @@ from dofview.train.points import write_colmap_text
 
 MID_GREY = 0.18
 # What a camera sees: every Gaussian to its 3σ support, no τ cut (a cut darkens faint regions, which
-# a camera would not); the photos, the held-out views, the trainer and the evaluation all use it.
-PHOTO_RENDER = RenderSettings(tau=0.0)
+# a camera would not), through the per-splat lens model (the one the trainer fits: photos made with
+# another would ask for what it cannot draw); the photos, the held-out views, the trainer and the
+# evaluation all use it.
+PHOTO_RENDER = RenderSettings(tau=0.0, dof="splat")
 
 
 @dataclass(frozen=True)

@@ -39,8 +39,8 @@ from dofview.train.rasterisers import RASTERISERS, choose_rasteriser
 
 VARIANTS = ("full", "no-exp", "no-foc", "ldr")
 DEFAULT_VARIANT = "no-foc"
-# The trainer splats as the photos were taken, τ = 0 (3σ support): a τ cut would also hide faint
-# Gaussians from the gradient.
+# The trainer splats as the photos were taken: τ = 0 (3σ support; a τ cut would also hide faint
+# Gaussians from the gradient) and the per-splat lens model it fits with.
 TRAIN_RENDER = PHOTO_RENDER
 
 

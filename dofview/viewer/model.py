@@ -366,9 +366,11 @@ class ViewerModel:
             # the single-pass image is kept only where refinement can follow (it copies two float targets)
             self.progressive.restart(keep_single=lens.aperture > 0 and self.settings.lens_samples_max > 0)
         elif 0 < self.progressive.samples < self.settings.lens_samples_max and not self.busy:
-            # still: one more pass of the next stage; the last complete stage stays on screen
-            self.progressive.add(camera, lens, self.settings.render,
-                                 next_stage(self.progressive.samples, self.settings.lens_samples_max))
+            # still: one more pass of the next stage, the last complete stage staying on screen;
+            # the first refinement (2 passes) is drawn whole, so the second still frame shows it
+            stage = next_stage(self.progressive.samples, self.settings.lens_samples_max)
+            while self.progressive.add(camera, lens, self.settings.render, stage) != stage and stage == 2:
+                pass
             self.progressive.show()
             drawn = False  # the targets now hold the refined image
         return drawn

@@ -1,8 +1,11 @@
 #version 430
-// Sliced depth of field, "hybrid" composite (slices.sliced_image): the "over" composite, and where
-// its coverage falls short of the sum of the blurred visible parts (capped at 1), that sum scaled
-// to make up the deficit. A surface cut by slice boundaries stays whole (the visible parts add up);
-// a blurred foreground edge still reveals what it hid ("over").
+// Sliced depth of field, the last pass (slices.resolve is the twin): the "over" composite of the
+// blurred layers, scaled up to the sum of their blurred visible coverages where its coverage falls
+// short, and down to full coverage where it exceeds that. Where a surface is cut between two
+// layers "over" of their complementary blurred parts loses coverage and the visible sum does not;
+// where a blurred foreground edge reveals what it hid, "over" has the more coverage and stays as
+// it is; where the blur radius changes across a surface neighbouring kernels overlap (each keeps
+// its own light), which full coverage caps.
 
 uniform sampler2D u_over;
 uniform sampler2D u_visible;
@@ -12,7 +15,6 @@ out vec4 out_colour;
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 o = texelFetch(u_over, p, 0);
-    vec4 v = texelFetch(u_visible, p, 0);
-    float deficit = max(min(v.a, 1.0) - o.a, 0.0);
-    out_colour = o + (v.a > 0.0 ? v * (deficit / max(v.a, 1e-12)) : vec4(0.0));
+    float target = min(max(o.a, texelFetch(u_visible, p, 0).r), 1.0);
+    out_colour = o.a > 0.0 ? o * (target / o.a) : o;
 }

@@ -5,7 +5,9 @@
 // the block's transmittance has fallen below T_MIN everywhere. Writes the Renderer targets:
 // premultiplied colour and coverage, and (sum w z, sum w / z, 0, sum w), w = alpha T. With
 // u_resume the targets already hold the nearer part of the scene (a depth slice or an earlier
-// pass) and blending continues from them. GROUP (threads along a side) and PIX are #defined.
+// pass) and blending continues from them. Only the splats of ranks [u_window.x, u_window.y) of
+// the depth order are blended (a depth slice of the sliced mode; tile lists hold ranks, in order),
+// in the tiles from u_tile_origin on. GROUP (threads along a side) and PIX are #defined.
 layout(local_size_x = GROUP, local_size_y = GROUP) in;
 
 #include "lens.glsl"
@@ -14,6 +16,7 @@ layout(local_size_x = GROUP, local_size_y = GROUP) in;
 layout(std430, binding = 0) readonly buffer Splats { Splat splats[]; };
 layout(std430, binding = 1) readonly buffer TileVals { uint tile_vals[]; };
 layout(std430, binding = 2) readonly buffer Ranges { uvec2 ranges[]; };
+layout(std430, binding = 3) readonly buffer Order { uint order[]; };
 layout(rgba32f, binding = 0) uniform image2D u_colour;
 layout(rgba32f, binding = 1) uniform image2D u_depth;
 uniform float u_tau;
@@ -22,13 +25,25 @@ uniform uint u_tiles_x;
 uniform bool u_resume;
 uniform uint u_skip;
 uniform uint u_take;
+uniform uvec2 u_window;
+uniform uvec2 u_tile_origin;
 
 const float T_MIN = 1e-4;
 const uint TILE = GROUP * PIX;
 const int N = int(PIX * PIX);
 
+// The first place in tile_vals[lo, hi) (ascending) holding a rank ≥ rank.
+uint lower_bound(uint lo, uint hi, uint rank) {
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (tile_vals[mid] < rank) lo = mid + 1u; else hi = mid;
+    }
+    return lo;
+}
+
 void main() {
-    ivec2 first = ivec2(gl_WorkGroupID.xy * TILE + gl_LocalInvocationID.xy * PIX);
+    uvec2 tile = gl_WorkGroupID.xy + u_tile_origin;
+    ivec2 first = ivec2(tile * TILE + gl_LocalInvocationID.xy * PIX);
     ivec2 px[N];
     vec3 rgb[N];
     float T[N], wz[N], wiz[N];
@@ -51,7 +66,9 @@ void main() {
         if (!inside) T[k] = 0.0;  // never blended, never stored
         live = live || T[k] >= T_MIN;
     }
-    uvec2 range = ranges[gl_WorkGroupID.y * u_tiles_x + gl_WorkGroupID.x];
+    uvec2 range = ranges[tile.y * u_tiles_x + tile.x];
+    range.x = lower_bound(range.x, range.y, u_window.x);
+    range.y = lower_bound(range.x, range.y, u_window.y);
     // A pass blends at most u_take splats of the tile from the u_skip-th on (llvmpipe ends an
     // invocation's loops after 65535 iterations in all, so a longer tile is blended in passes).
     range.x = min(range.y, range.x + u_skip);
@@ -59,7 +76,7 @@ void main() {
     // Every thread reads the same splat at the same time (a broadcast): no shared-memory staging,
     // which on llvmpipe costs more than the loads it saves.
     for (uint j = range.x; j < range.y && live; ++j) {
-        uint g = tile_vals[j];
+        uint g = order[tile_vals[j]];
         vec4 a = splats[g].a;
         vec4 b = splats[g].b;
         vec3 colour = splats[g].c.rgb;

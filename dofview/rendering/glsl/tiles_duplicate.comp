@@ -1,6 +1,8 @@
 #version 430
 // Compute rasteriser, step 3: one (tile, Gaussian) pair per touched tile, written in depth order
-// from the scanned counts; a stable sort by tile then leaves each tile's list front to back.
+// from the scanned counts; a stable sort by tile then leaves each tile's list front to back. The
+// pair's value is the Gaussian's place in the depth order (its rank), so that a tile's list is
+// sorted by rank and a blend can take any range of the order from it (tiles_blend.comp).
 // Gaussians [u_first, u_first + u_n) of the depth order; offsets are relative to u_base. A pass
 // writes pairs [u_skip, u_skip + u_take) of each Gaussian (llvmpipe ends an invocation's loops after
 // 65535 iterations, and a splat may cover more tiles than that on a large image).
@@ -40,7 +42,7 @@ void main() {
             for (uint x = x0; x < x0 + w; ++x) {
                 if (splat_touches_tile(s, uvec2(x, y))) {
                     tile_keys[at] = y * u_tiles_x + x;
-                    tile_vals[at] = g;
+                    tile_vals[at] = u_first + i;
                     ++at;
                 }
             }
@@ -50,6 +52,6 @@ void main() {
     uint end = u_skip + min(count - min(count, u_skip), u_take);
     for (uint k = u_skip; k < end; ++k) {
         tile_keys[at + k] = (y0 + k / w) * u_tiles_x + x0 + k % w;
-        tile_vals[at + k] = g;
+        tile_vals[at + k] = u_first + i;
     }
 }

@@ -1,0 +1,34 @@
+#version 430
+// Sliced depth of field, per layer (slices.scatter is the twin): every pixel of the prepared layer
+// spread over the kernel at its own signed CoC, as a gather: out(p) = Σ_taps a(p − d)·w(d, ρ(p − d))
+// (slice_kernel.glsl), a already divided by N(ρ). Sources beyond the frame repeat its edge (the
+// guard band). Blended front to back into the frame's or a run's accumulators (ONE_MINUS_DST_ALPHA,
+// ONE): "over" for the colour, and the sum of the visible coverages in the second target, whose
+// alpha stays 0 so that the same blend adds.
+
+#include "slice_kernel.glsl"
+
+uniform sampler2D u_a;  // colour / N(ρ)
+uniform sampler2D u_b;  // (ρ, visible coverage / N(ρ))
+
+layout(location = 0) out vec4 out_colour;
+layout(location = 1) out vec4 out_visible;
+
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    ivec2 last = textureSize(u_a, 0) - 1;
+    vec4 sum = vec4(0.0);
+    float visible = 0.0;
+    for (int i = 0; i < u_taps; ++i) {
+        vec2 d = tap(i);
+        ivec2 q = clamp(p - ivec2(d), ivec2(0), last);
+        vec2 b = texelFetch(u_b, q, 0).rg;
+        float w = kernel_weight(d, b.x);
+        if (w > 0.0) {
+            sum += w * texelFetch(u_a, q, 0);
+            visible += w * b.y;
+        }
+    }
+    out_colour = sum;
+    out_visible = vec4(visible, 0.0, 0.0, 0.0);
+}
