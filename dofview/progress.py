@@ -17,8 +17,10 @@ class Progress:
     """``with Progress("loading scene.ply", total) as p: p.update(done, info="…")``."""
 
     def __init__(self, label: str, total: int, stream: TextIO | None = None, delay: float = 0.5,
-                 unit: str = "", heartbeat: float = 15.0) -> None:
+                 unit: str = "", heartbeat: float = 15.0, resumed: int = 0) -> None:
+        """``resumed``: units done before this run (a resumed job); the ETA counts only this run's pace."""
         self.label, self.total, self.unit = label, max(int(total), 1), unit
+        self.resumed = resumed
         self.stream = stream or sys.stderr
         self.delay, self.heartbeat = delay, heartbeat
         self.start = time.perf_counter()
@@ -40,7 +42,8 @@ class Progress:
         if elapsed < self.delay and done < self.total:
             return
         frac = min(done / self.total, 1.0)
-        eta = f"eta {clock(elapsed / frac - elapsed)}" if frac > 0 else "eta ?"
+        pace = (done - self.resumed) / max(self.total - self.resumed, 1)  # fraction of this run's work
+        eta = f"eta {clock(elapsed / pace - elapsed)}" if pace > 0 else "eta ?"
         if self.tty:
             bar = "█" * int(frac * 24) + "·" * (24 - int(frac * 24))
             line = f"\r{self.label} {bar} {done}/{self.total}{self.unit} {clock(elapsed)} {eta} {info}"

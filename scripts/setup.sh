@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Set up dofview on a fresh Debian/Ubuntu machine: system GL/EGL (Mesa) and Xvfb when missing,
-# a virtual environment in .venv, and dofview with its test and trainer extras.
+# Set up dofview on a fresh Debian/Ubuntu machine: system GL/EGL (Mesa) and Xvfb when missing, a C
+# compiler (the trainer builds its native rasteriser with it on first use), a virtual environment
+# in .venv, and dofview with its test and trainer extras.
 # Safe to run again: it only installs what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-pkgs=(libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libgl1 xvfb xauth)
+pkgs=(libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libgl1 xvfb xauth gcc libc6-dev)
 missing=()
 if command -v dpkg-query >/dev/null 2>&1; then
   for p in "${pkgs[@]}"; do

@@ -1,4 +1,5 @@
-"""A non-editable install works: the wheel carries every shader file the renderer loads."""
+"""A non-editable install works: the wheel carries every shader file the renderer loads, and the
+trainer's C source."""
 
 import subprocess
 import sys
@@ -22,5 +23,6 @@ def test_wheel_ships_the_shaders(tmp_path):
     shaders = sorted(f.name for f in (ROOT / "dofview" / "rendering" / "glsl").iterdir() if f.is_file())
     assert shaders and all(f"dofview/rendering/glsl/{s}" in names for s in shaders)
     assert "dofview/rendering/quad.py" in names
+    assert "dofview/train/native.c" in names  # the trainer's native rasteriser is built from it on first use
     # the package only: the tests' scene files (tests/data, ~10 MB) and the samples stay out
     assert not [n for n in names if n.startswith(("tests/", "samples/")) or n.endswith((".ply", ".spz"))]

@@ -1,4 +1,5 @@
-"""The trainer's sparse rasteriser (dofview/train/sparse.py) against the dense one and the GL renderer."""
+"""The trainer's sparse rasterisers (torch: dofview/train/sparse.py; C: dofview/train/native.py)
+against the dense one and the GL renderer."""
 
 import numpy as np
 import pytest
@@ -14,8 +15,12 @@ from dofview.io import load_scene  # noqa: E402
 from dofview.lens import Lens  # noqa: E402
 from dofview.rendering.quad import QuadBackend  # noqa: E402
 from dofview.rendering.reference import sh_colour  # noqa: E402
+from dofview.train.native import rasterise_native  # noqa: E402
 from dofview.train.raster import project, rasterise  # noqa: E402
 from dofview.train.sparse import EARLY_STOP, bin_tiles, rasterise_sparse  # noqa: E402
+
+# the native one builds with the system C compiler (tests/test_train_native.py: its fallback)
+SPARSE = pytest.mark.parametrize("raster", [rasterise_sparse, rasterise_native], ids=["sparse", "native"])
 
 CAM = look_at((0.3, 0.1, 0.0), (0.0, 0.0, 5.0), 64, 48, 60.0)
 
@@ -24,14 +29,17 @@ def _tensors(arrays, dtype=torch.float32, grad=False):
     return [torch.tensor(np.asarray(a), dtype=dtype, requires_grad=grad) for a in arrays]
 
 
+@SPARSE
 @pytest.mark.parametrize("aperture", [0.0, 20.0])
 @pytest.mark.parametrize("settings", [RenderSettings(dof="splat"), RenderSettings(tau=0.0, dof="splat")])
-def test_sparse_forward_matches_dense_and_gl(aperture, settings):
+def test_sparse_forward_matches_dense_and_gl(raster, aperture, settings):
     scene = random_scene(400, colour_space="linear")
     lens = Lens(focus=4.0, aperture=aperture)
     colours = sh_colour(scene, CAM.centre, np.arange(scene.count))
     args = _tensors((scene.means, scene.quats, scene.scales, scene.opacities, colours))
-    sparse = rasterise_sparse(*args, CAM, lens, settings, budget=3000)  # several chunks
+    # sparse: several chunks; native: several threads
+    extra = {"budget": 3000} if raster is rasterise_sparse else {"threads": 3}
+    sparse = raster(*args, CAM, lens, settings, **extra)
     dense = rasterise(*args, CAM, lens, settings)
     gl = QuadBackend(scene).render(CAM, lens, settings)
     peak = max(float(gl.rgba.max()), 1.0)
@@ -66,14 +74,15 @@ def _overlapping_scene(n=60, seed=1):
     return means, rng.normal(size=(n, 4)), scales, rng.uniform(0.1, 0.9, n), rng.uniform(0.1, 3.0, (n, 3))
 
 
+@SPARSE
 @pytest.mark.parametrize("aperture", [0.0, 20.0])
-def test_sparse_gradients_match_dense_autograd(aperture):
+def test_sparse_gradients_match_dense_autograd(raster, aperture):
     arrays = _overlapping_scene()
     lens, settings = Lens(4.0, aperture), RenderSettings(tau=0.0, dof="splat")
     s = project(*_tensors(arrays, torch.float64), CAM, lens, settings)
     tiles = bin_tiles(s.lo, s.hi, CAM.width, CAM.height)
     assert int((tiles.gauss == 0).sum()) >= 4  # the corner splat is in four tiles or more
-    rgb_s, alpha_s, grads_s = _render_grads(rasterise_sparse, arrays, lens, settings)
+    rgb_s, alpha_s, grads_s = _render_grads(raster, arrays, lens, settings)
     rgb_d, alpha_d, grads_d = _render_grads(rasterise, arrays, lens, settings)
     assert float(alpha_d.max()) < 1.0 - EARLY_STOP  # no early stop here: every pixel stays transparent enough
     assert float(alpha_d.max()) > 0.9  # but several splats deep
@@ -93,10 +102,11 @@ def _stack_scene():
     return means, rng.normal(size=(4, 4)), scales, np.full(4, 0.97), rng.uniform(0.2, 2.0, (4, 3))
 
 
-def test_early_stop_and_its_gradients():
+@SPARSE
+def test_early_stop_and_its_gradients(raster):
     arrays = _stack_scene()
     lens, settings = Lens(4.0, 0.0), RenderSettings(tau=0.0, dof="splat")
-    rgb_s, alpha_s, grads_s = _render_grads(rasterise_sparse, arrays, lens, settings)
+    rgb_s, alpha_s, grads_s = _render_grads(raster, arrays, lens, settings)
     rgb_d, alpha_d, grads_d = _render_grads(rasterise, arrays, lens, settings)
     stopped = alpha_d > 1.0 - EARLY_STOP
     assert int(stopped.sum()) >= 4 and float(alpha_s.max()) <= 1.0 - EARLY_STOP + 1e-12  # it stopped there
@@ -111,7 +121,8 @@ def test_early_stop_and_its_gradients():
         assert torch.allclose(a, b, rtol=0.0, atol=5e-3 * float(b.abs().max())), name
 
 
-def test_gradcheck_double_precision():
+@SPARSE
+def test_gradcheck_double_precision(raster):
     """Finite differences of the sparse renderer itself (with early stop active) on a tiny view."""
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 5.0), 20, 16, 60.0)
     means, quats, scales, opacities, colours = _stack_scene()
@@ -120,7 +131,7 @@ def test_gradcheck_double_precision():
     params = _tensors((means, quats, scales, opacities, colours), torch.float64, grad=True)
 
     def render(*p):
-        r = rasterise_sparse(*p, cam, Lens(4.0, 6.0), RenderSettings(tau=0.0, dof="splat"))
+        r = raster(*p, cam, Lens(4.0, 6.0), RenderSettings(tau=0.0, dof="splat"))
         assert float(r.alpha.detach().max()) <= 1.0 - EARLY_STOP + 1e-12
         return r.rgb, r.alpha
 
@@ -129,14 +140,14 @@ def test_gradcheck_double_precision():
     assert torch.autograd.gradcheck(render, params, eps=1e-6, atol=1e-5, rtol=1e-4)
 
 
-def test_train_cli_dense_and_sparse(tmp_path):
-    """``dofview train --torch-raster`` takes both; each writes a linear scene."""
+def test_train_cli_every_rasteriser(tmp_path):
+    """``dofview train --torch-raster`` takes each; each writes a linear scene."""
     from test_train import Capture, generate, hdr_scene
 
     ds = tmp_path / "ds"
     generate(hdr_scene(), ds, Capture(views=3, held_out=0, width=32, height=24), eye=(0, 0, 0),
              target=(0, 0, 4.5), progress=False)
-    for raster in ("sparse", "dense"):
+    for raster in ("native", "sparse", "dense"):
         out = tmp_path / f"{raster}.ply"
         assert main(["train", str(ds), "-o", str(out), "--iterations", "12", "--warmup", "6", "--gaussians", "40",
                      "--checkpoint-every", "0", "--torch-raster", raster]) == 0

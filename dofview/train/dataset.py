@@ -5,7 +5,8 @@ settings: exposure time t (s), f-number N, focus distance d_f (scene units) and 
 (mm). A setting missing from the frame is taken from the file's top level, then from the image's
 EXIF (ExposureTime, FNumber, FocalLength, SubjectDistance in metres); an image whose settings stay
 unknown is named in the error. Held-out frames (``"split": "test"``) carry an all-in-focus linear
-HDR EXR (``hdr_path``) for evaluation instead of a photo.
+HDR EXR (``hdr_path``) for evaluation instead of a photo. Structure-from-motion points, when the
+dataset has them (:func:`find_points`), start the fit.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from dofview.errors import DofviewError
 from dofview.io.jsonfile import read_json
 from dofview.lens import Lens, PhysicalLens, exposure_from_shutter
 from dofview.train.exif import read_exif
+from dofview.train.points import PointCloud, read_points
 
 SETTINGS = ("exposure_time", "f_number", "focus_distance", "focal_length_mm")
 
@@ -70,6 +72,7 @@ class Dataset:
         sensor_mm: sensor width in mm. units_per_metre: scene units per metre.
         gamma: the photos' transfer gamma γ of Eq. 7.
         depth_range: (near, far) camera depths in scene units where the scene lies, or None.
+        points: structure-from-motion points in the world frame of the cameras, or None.
     """
 
     root: Path
@@ -79,6 +82,7 @@ class Dataset:
     units_per_metre: float
     gamma: float
     depth_range: tuple[float, float] | None
+    points: PointCloud | None = None
 
     def lenses(self) -> list[Lens]:
         return [s.lens(self.sensor_mm, self.units_per_metre) for s in self.shots]
@@ -170,7 +174,40 @@ def load_dataset(path: str | Path) -> Dataset:
                            + "; ".join(unknown))
     if not shots:
         raise DofviewError(f"{file}: no training frames")
-    return Dataset(root, tuple(shots), tuple(held), sensor, upm, gamma, depth_range)  # type: ignore[arg-type]
+    return Dataset(root, tuple(shots), tuple(held), sensor, upm, gamma, depth_range,  # type: ignore[arg-type]
+                   find_points(file, top))
+
+
+POINTS_KEYS = ("points3D", "ply_file_path")  # ours, and nerfstudio's name for its sparse_pc.ply
+COLMAP_FOLDERS = ("sparse/0", "colmap/sparse/0")  # beside the images: COLMAP's, and ns-process-data's layout
+
+
+def find_points(file: Path, top: dict) -> PointCloud | None:
+    """The dataset's SfM points: the file named by ``points3D`` or ``ply_file_path`` in
+    transforms.json (relative to its folder, in the cameras' frame), else COLMAP's
+    ``points3D.bin``/``.txt`` in ``sparse/0`` or ``colmap/sparse/0`` beside it, moved into the
+    cameras' frame by the file's ``applied_transform`` (3×4 or 4×4) when it has one, as
+    nerfstudio writes; None when there are none."""
+    root = file.parent
+    for key in POINTS_KEYS:
+        if key in top:
+            if not isinstance(top[key], str):
+                raise DofviewError(f"{file}: {key} must name a points file, got {top[key]!r}")
+            return read_points(root / top[key])
+    found = [root / d / n for d in COLMAP_FOLDERS for n in ("points3D.bin", "points3D.txt")]
+    path = next((p for p in found if p.is_file()), None)
+    if path is None:
+        return None
+    cloud = read_points(path)
+    if "applied_transform" not in top:
+        return cloud
+    try:
+        m = np.asarray(top["applied_transform"], dtype=np.float64)
+        if m.shape not in ((3, 4), (4, 4)) or not np.all(np.isfinite(m)):
+            raise ValueError(f"shape {m.shape}")
+    except (TypeError, ValueError) as e:
+        raise DofviewError(f"{file}: applied_transform must be a finite 3×4 or 4×4 matrix ({e})") from None
+    return PointCloud(cloud.positions @ m[:3, :3].T + m[:3, 3], cloud.colours, cloud.path)
 
 
 def load_photo(shot: Shot) -> np.ndarray:

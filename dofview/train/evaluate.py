@@ -1,7 +1,8 @@
 """Score a trained scene on a dataset's held-out all-in-focus HDR views.
 
 Each held-out view is rendered by dofview's GL renderer (pinhole, so all in focus) from the
-written scene file, exactly as ``dofview render`` would. An HDR ("linear") scene's render is
+written scene file, as ``dofview render --tau 0`` would (no τ cut: as the held-out views were made,
+:data:`dofview.train.generate.PHOTO_RENDER`). An HDR ("linear") scene's render is
 radiance as it stands; an sRGB scene (the plain LDR fit) is decoded to linear and divided by the
 dataset's key exposure (geometric mean of t/N²), the exposure its colours correspond to on
 average.
@@ -22,11 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from dofview.errors import DofviewError
-from dofview.frame import RenderSettings
 from dofview.io.exr import read_exr
 from dofview.lens import Lens
 from dofview.scene import GaussianScene
 from dofview.train.dataset import Dataset
+from dofview.train.generate import PHOTO_RENDER
 
 LOG_FLOOR = 1e-4
 BRIGHT = 10.0
@@ -71,7 +72,7 @@ def bright_ratio(pred: np.ndarray, truth: np.ndarray) -> float | None:
 def render_radiance(scene: GaussianScene, dataset: Dataset, renderer) -> list[np.ndarray]:
     """(H, W, 3) float32 linear radiance of each held-out view, as the scene file renders it."""
     scale = 1.0 if scene.colour_space == "linear" else 1.0 / dataset.key_exposure()
-    return [renderer.render(h.camera, Lens(1.0, 0.0), RenderSettings()).rgba[..., :3] * scale for h in dataset.held_out]
+    return [renderer.render(h.camera, Lens(1.0, 0.0), PHOTO_RENDER).rgba[..., :3] * scale for h in dataset.held_out]
 
 
 def evaluate(scene: GaussianScene, dataset: Dataset, raster: str = "quad") -> Evaluation:

@@ -5,7 +5,8 @@ Every training view gets a random focus distance (uniform in inverse depth betwe
 (log-uniform around the view's mid-grey key), is rendered with depth of field, tonemapped by
 Eq. 7 (clip, then gamma) and quantised to 8 bits: a PNG whose eXIf chunk holds the settings.
 Held-out views are rendered all-in-focus and kept as linear HDR EXRs for evaluation. No depth
-range is written: the trainer must find the geometry itself.
+range is written: the trainer must find the geometry itself, from the photos alone or, with
+``points``, from SfM-like points (:func:`sfm_points`) as a real capture's COLMAP run would give.
 """
 
 from __future__ import annotations
@@ -28,8 +29,14 @@ from dofview.progress import Progress
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, display, to_uint8
 from dofview.train.exif import write_png_exif
+from dofview.train.points import write_colmap_text
 
 MID_GREY = 0.18
+# What a camera sees: every Gaussian to its 3σ support, no τ cut (a cut darkens faint regions, which
+# a camera would not), through the per-splat lens model (the one the trainer fits: photos made with
+# another would ask for what it cannot draw); the photos, the held-out views, the trainer and the
+# evaluation all use it.
+PHOTO_RENDER = RenderSettings(tau=0.0, dof="splat")
 
 
 @dataclass(frozen=True)
@@ -45,6 +52,7 @@ class Capture:
         f_numbers: f-numbers drawn from.
         orbit_deg: cameras orbit the target by up to this yaw and half this pitch.
         gamma: γ of Eq. 7. seed: random seed.
+        points: SfM-like points to write (COLMAP sparse/0/points3D.txt), 0 for none.
     """
 
     views: int = 30
@@ -59,10 +67,11 @@ class Capture:
     orbit_deg: float = 15.0
     gamma: float = 2.2
     seed: int = 0
+    points: int = 0
 
     def __post_init__(self) -> None:
-        if self.views < 1 or self.held_out < 0 or self.width < 8 or self.height < 8:
-            raise DofviewError("need ≥ 1 view, ≥ 0 held-out views and images of at least 8×8 pixels")
+        if self.views < 1 or self.held_out < 0 or self.width < 8 or self.height < 8 or self.points < 0:
+            raise DofviewError("need ≥ 1 view, ≥ 0 held-out views, ≥ 0 points and images of at least 8×8 pixels")
         if not (self.ev_range[0] <= self.ev_range[1]) or not self.f_numbers or min(self.f_numbers) <= 0:
             raise DofviewError("exposure range must be low ≤ high and f-numbers > 0")
 
@@ -85,7 +94,7 @@ def orbit(eye: np.ndarray, target: np.ndarray, yaw_deg: float, pitch_deg: float,
 
 
 def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Capture(),
-             eye=None, target=None, render: RenderSettings = RenderSettings(), progress: bool = True,
+             eye=None, target=None, render: RenderSettings = PHOTO_RENDER, progress: bool = True,
              raster: str = "quad") -> Path:
     """Render a dataset of ``scene`` into the new folder ``out_dir`` with backend ``raster``
     (:func:`dofview.rendering.get_backend`); returns its transforms.json.
@@ -131,6 +140,12 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
                 else:
                     frames.append({**frame, **_shoot(renderer, cam, pinhole, capture, render, rng, tmp, i)})
                 bar.update(i + 1)
+        if capture.points:
+            shots = [f for f in frames if "exposure_time" in f]
+            key = math.exp(np.mean([math.log(f["exposure_time"] / f["f_number"] ** 2) for f in shots]))
+            (tmp / "sparse" / "0").mkdir(parents=True)
+            write_colmap_text(tmp / "sparse" / "0" / "points3D.txt",
+                              *sfm_points(scene, capture.points, eye, cam.fx, key, capture.gamma, rng))
         doc = {
             "camera_convention": "opencv", "w": capture.width, "h": capture.height,
             "fl_x": cam.fx, "fl_y": cam.fy, "cx": cam.cx, "cy": cam.cy,
@@ -138,7 +153,7 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
             "generator": {"scene": scene.name, "colour_space": scene.colour_space, "gaussians": scene.count,
                           "eye": eye.tolist(), "target": target.tolist(), "seed": capture.seed,
                           "ev_range": list(capture.ev_range), "f_numbers": list(capture.f_numbers),
-                          "orbit_deg": capture.orbit_deg},
+                          "orbit_deg": capture.orbit_deg, "points": capture.points},
             "frames": frames,
         }
         (tmp / "transforms.json").write_text(json.dumps(doc, indent=1))
@@ -151,6 +166,28 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     finally:
         renderer.release()
     return out / "transforms.json"
+
+
+def sfm_points(scene: GaussianScene, count: int, eye: np.ndarray, fx: float, key: float, gamma: float,
+               rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """SfM-like points of ``scene``: (positions (count, 3) scene units, colours (count, 3) uint8).
+
+    The means of ``count`` random Gaussians that are fairly opaque (opacity ≥ 0.5, where a
+    reconstruction finds surfaces) and inside the scene's robust box (no floaters), each moved by
+    Gaussian noise of one pixel's footprint (``fx`` pixels of focal length) at its distance from
+    ``eye`` (a reprojection error of about a pixel); coloured as a photo at exposure ``key`` (t/N²)
+    and gamma ``gamma`` shows the Gaussian's base colour. Fewer when the scene has fewer such
+    Gaussians.
+    """
+    lo, hi = scene.robust_bounds()
+    solid = np.nonzero((scene.opacities >= 0.5) & np.all((scene.means >= lo) & (scene.means <= hi), axis=1))[0]
+    pick = rng.choice(solid, min(count, len(solid)), replace=False)
+    means = scene.means[pick].astype(np.float64)
+    sigma = np.linalg.norm(means - eye, axis=1) / fx
+    positions = means + rng.normal(size=means.shape) * sigma[:, None]
+    colour = scene.base_colour()[pick].astype(np.float64)
+    radiance = colour if scene.colour_space == "linear" else colour ** gamma
+    return positions, to_uint8(np.minimum(radiance * key, 1.0) ** (1.0 / gamma))
 
 
 def _shoot(renderer, cam: Camera, pinhole, capture: Capture, render: RenderSettings,

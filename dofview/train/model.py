@@ -11,15 +11,20 @@ Opacity is a logit, scales are logs, rotations unnormalised quaternions — as i
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import torch
 
 from dofview.scene import SH_C0, ColourSpace, GaussianScene
 from dofview.train.dataset import Dataset
+from dofview.train.losses import DARK, SATURATED
+from dofview.train.points import nearest_distance
 
 PARAMS = ("means", "log_scales", "quats", "opacity_logits", "log_colours", "sh_rest")
 MIN_COLOUR = 1e-4  # a floor for the log of an initial colour (black pixels)
+RANDOM_OPACITY = 0.3
+POINTS_OPACITY = 0.1  # the reference 3DGS start's: SfM points lie dense on the surfaces
 
 
 class GaussianModel:
@@ -69,9 +74,35 @@ class GaussianModel:
 
 
 def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int, linear: bool,
-                  rng: np.random.Generator, device: torch.device, sh_degree: int = 0) -> GaussianModel:
-    """``count`` Gaussians at random points of the training cameras' frusta, view-independent
-    at first (SH bands 1..``sh_degree`` zero).
+                  rng: np.random.Generator, device: torch.device, sh_degree: int = 0,
+                  max_count: int | None = None) -> GaussianModel:
+    """The Gaussians a fit starts from, view-independent at first (SH bands 1..``sh_degree`` zero):
+    the dataset's SfM points when it has them (:func:`points_start`, at most ``max_count``), else
+    ``count`` random ones (:func:`random_start`)."""
+    if dataset.points is not None:
+        means, colours, sizes = points_start(dataset, photos, linear, rng, max_count)
+        opacity = POINTS_OPACITY
+    else:
+        means, colours, sizes = random_start(dataset, photos, count, linear, rng)
+        opacity = RANDOM_OPACITY
+    n = len(means)
+    quats = np.zeros((n, 4))
+    quats[:, 0] = 1.0
+    f = lambda a: torch.tensor(a, dtype=torch.float32, device=device)  # noqa: E731
+    return GaussianModel({
+        "means": f(means),
+        "log_scales": f(np.log(np.repeat(sizes[:, None], 3, axis=1))),
+        "quats": f(quats),
+        "opacity_logits": f(np.full(n, math.log(opacity / (1 - opacity)))),
+        "log_colours": f(np.log(np.maximum(colours, MIN_COLOUR))),
+        "sh_rest": f(np.zeros((n, (sh_degree + 1) ** 2 - 1, 3))),
+    })
+
+
+def random_start(dataset: Dataset, photos: list[np.ndarray], count: int, linear: bool,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` random points of the training cameras' frusta: (means (count, 3) scene units,
+    colours (count, 3), sizes (count,) scene units).
 
     Each point is a random pixel of a random photo, pushed out to a depth drawn uniformly in
     inverse depth over the dataset's depth range (:meth:`Dataset.scene_depths`: ½× the nearest
@@ -92,14 +123,47 @@ def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int, linear
         value = photo[int(py), int(px)].astype(np.float64)
         colours[j] = value ** dataset.gamma / shot.exposure if linear else value
         sizes[j] = 1.5 * z / cam.fx
-    quats = np.zeros((count, 4))
-    quats[:, 0] = 1.0
-    f = lambda a: torch.tensor(a, dtype=torch.float32, device=device)  # noqa: E731
-    return GaussianModel({
-        "means": f(means),
-        "log_scales": f(np.log(np.repeat(sizes[:, None], 3, axis=1))),
-        "quats": f(quats),
-        "opacity_logits": f(np.full(count, math.log(0.3 / 0.7))),
-        "log_colours": f(np.log(np.maximum(colours, MIN_COLOUR))),
-        "sh_rest": f(np.zeros((count, (sh_degree + 1) ** 2 - 1, 3))),
-    })
+    return means, colours, sizes
+
+
+def points_start(dataset: Dataset, photos: list[np.ndarray], linear: bool, rng: np.random.Generator,
+                 max_count: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The dataset's SfM points (a random ``max_count`` of them when there are more), as the
+    reference 3DGS starts: (means (P, 3) scene units, colours (P, 3), sizes (P,) scene units).
+
+    The size is the RMS distance to the 3 nearest other points. The colour is seen in the photos,
+    as the random start's: the median, over the photos in whose frame the point lies (in front
+    of the camera), of the pixel it lands on — un-exposed to radiance, pixel^γ / (t/N²), for an
+    HDR model, with pixels black or saturated in any channel left out (they carry no radiance);
+    occlusion is not modelled, the median outvotes it. A point no photo shows usefully takes the
+    file's colour at the key exposure (mid-grey when the file has none).
+    """
+    points = dataset.points
+    assert points is not None
+    keep = np.arange(len(points.positions))
+    if max_count is not None and len(keep) > max_count:
+        keep = np.sort(rng.choice(keep, max_count, replace=False))
+    means = points.positions[keep]
+    samples = np.full((len(photos), len(means), 3), np.nan, np.float32)
+    for i, (shot, photo) in enumerate(zip(dataset.shots, photos)):
+        cam = shot.camera
+        t = cam.world_to_camera(means)
+        front = t[:, 2] > 0
+        z = np.where(front, t[:, 2], 1.0)
+        px, py = cam.fx * t[:, 0] / z + cam.cx, cam.fy * t[:, 1] / z + cam.cy
+        seen = np.nonzero(front & (px >= 0) & (px < cam.width) & (py >= 0) & (py < cam.height))[0]
+        value = photo[py[seen].astype(int), px[seen].astype(int)]
+        if linear:
+            ok = ((value > DARK) & (value < SATURATED)).all(1)
+            seen, value = seen[ok], value[ok] ** dataset.gamma / shot.exposure
+        samples[i, seen] = value
+    with warnings.catch_warnings():  # a point no photo shows has an all-NaN column: handled below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        colours = np.nanmedian(samples, axis=0).astype(np.float64)
+    own = np.full((len(means), 3), 0.5) if points.colours is None else points.colours[keep].astype(np.float64)
+    own = own ** dataset.gamma / dataset.key_exposure() if linear else own
+    colours = np.where(np.isnan(colours), own, colours)
+    if len(means) > 1:
+        return means, colours, nearest_distance(means)
+    cam = dataset.shots[0].camera  # a lone point has no neighbours: the random start's size, a pixel and a half
+    return means, colours, np.array([1.5 * np.linalg.norm(means[0] - cam.centre) / cam.fx])

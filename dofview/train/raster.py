@@ -94,35 +94,35 @@ def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opac
     with torch.no_grad():
         front = torch.nonzero(t[:, 2] > settings.near).squeeze(1)
         front = front[torch.argsort(t[front, 2], stable=True)]
-    t = t[front]
+    t = t.index_select(0, front)  # (index_select: on the CPU a faster gather and backward than t[front])
     iz = 1.0 / t[:, 2]
     tx = torch.clamp(t[:, 0] * iz, (-cx - 0.15 * w) / fx, (w - cx + 0.15 * w) / fx)
     ty = torch.clamp(t[:, 1] * iz, (-cy - 0.15 * h) / fy, (h - cy + 0.15 * h) / fy)
     a = (fx * iz)[:, None] * (R[0][None] - tx[:, None] * R[2][None])
     c = (fy * iz)[:, None] * (R[1][None] - ty[:, None] * R[2][None])
-    M = rotations(quats[front]) * scales[front][:, None, :]  # Σ = M Mᵀ
+    M = rotations(quats.index_select(0, front)) * scales.index_select(0, front)[:, None, :]  # Σ = M Mᵀ
     p0 = torch.einsum("ni,nij->nj", a, M)
     p1 = torch.einsum("ni,nij->nj", c, M)
     sxx, sxy, syy = (p0 * p0).sum(1), (p0 * p1).sum(1), (p1 * p1).sum(1)
     det_p = (torch.linalg.cross(p0, p1) ** 2).sum(1)
     radius = coc(iz, lens.aperture, lens.inv_focus)
     sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
-    o = normalise_opacity(opacities[front], beta, settings.opacity_norm, xp=torch)
+    o = normalise_opacity(opacities.index_select(0, front), beta, settings.opacity_norm, xp=torch)
     with torch.no_grad():
         kept, _, r2 = cut_splat(o, settings.tau, "drop", xp=torch)
         sel = torch.nonzero(kept & torch.isfinite(det) & (det > 0)).squeeze(1)
-    mean2d = torch.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], 1)[sel]
-    sxx, sxy, syy, det = sxx[sel], sxy[sel], syy[sel], det[sel]
+    mean2d = torch.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], 1).index_select(0, sel)
+    sxx, sxy, syy, det = (v.index_select(0, sel) for v in (sxx, sxy, syy, det))
     with torch.no_grad():
-        r2 = r2[sel]
+        r2 = r2.index_select(0, sel)
         ext = torch.sqrt(r2[:, None] * torch.stack([sxx, syy], 1))  # ≤ 3σ, as quads.vert
-    drawn = front[sel]
-    colour = colours[drawn]
+    drawn = front.index_select(0, sel)
+    colour = colours.index_select(0, drawn)
     if sh is not None and sh.shape[1]:
         centre = torch.as_tensor(camera.centre, dtype=dt, device=dev)
-        d = torch.nn.functional.normalize(means[drawn] - centre, dim=1, eps=1e-30)
-        colour = torch.clamp(colour + sh_view_terms(sh[drawn], d), min=0.0)
-    return Splats(mean2d=mean2d, conic=torch.stack([syy / det, -sxy / det, sxx / det], 1), opacity=o[sel],
+        d = torch.nn.functional.normalize(means.index_select(0, drawn) - centre, dim=1, eps=1e-30)
+        colour = torch.clamp(colour + sh_view_terms(sh.index_select(0, drawn), d), min=0.0)
+    return Splats(mean2d=mean2d, conic=torch.stack([syy / det, -sxy / det, sxx / det], 1), opacity=o.index_select(0, sel),
                   colour=colour, support=r2, lo=mean2d.detach() - ext, hi=mean2d.detach() + ext,
                   drawn=drawn)
 

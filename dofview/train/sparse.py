@@ -35,7 +35,7 @@ import torch
 from dofview.camera import Camera
 from dofview.frame import RenderSettings
 from dofview.lens import ALPHA_MAX, SUPPORT_MAX, Lens
-from dofview.train.raster import TILE, Raster, project, rasterise
+from dofview.train.raster import TILE, Raster, project
 
 EARLY_STOP = 1e-4  # transmittance below which a pixel stops blending
 FRAGMENTS_PER_CHUNK = 1 << 21  # (pixel, Gaussian) fragments built at once: ~20 tensors of this length
@@ -253,7 +253,3 @@ def rasterise_sparse(means: torch.Tensor, quats: torch.Tensor, scales: torch.Ten
     rgb, alpha = _Composite.apply(s.mean2d, s.conic, s.opacity, s.colour, s.support, binning, w, h,
                                    settings.tau)
     return Raster(rgb=rgb.reshape(h, w, -1), alpha=alpha.reshape(h, w), mean2d=s.mean2d, drawn=s.drawn)
-
-
-RASTERISERS = {"sparse": rasterise_sparse, "dense": rasterise}
-"""The trainer's rasterisers by ``--raster`` name; dense is kept as the test oracle."""
