@@ -22,11 +22,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from dofview.bench.primitives import Parts, add_panel  # noqa: E402
+from dofview.bench.primitives import Parts  # noqa: E402
+from dofview.bench.synth import receding_floor  # noqa: E402
 from dofview.bench.variants import make_references  # noqa: E402
 from dofview.camera import look_at  # noqa: E402
 from dofview.frame import Frame, RenderSettings  # noqa: E402
-from dofview.lens import Lens, aperture_for_blur  # noqa: E402
+from dofview.lens import Lens  # noqa: E402
 from dofview.rendering import get_backend, slices  # noqa: E402
 from dofview.rendering.depth_order import camera_depths  # noqa: E402
 from dofview.tonemap import Tonemap  # noqa: E402
@@ -60,11 +61,7 @@ def over_only(renderer, cam, lens) -> Frame:
 
 
 def floor(out: Path) -> None:
-    parts = Parts.empty()
-    add_panel(parts, 1, 0.6, {0: (-4.0, 4.0), 2: (0.5, 9.0)}, (0.6, 0.6, 0.6), spacing=0.05, opacity=0.98)
-    scene = parts.build("srgb", "floor")
-    cam = look_at((0.0, 0.0, 0.0), (0.0, 0.35, 4.0), 320, 240, 60.0)
-    lens = Lens(3.0, aperture_for_blur(20.0, 3.0, 1.0, 9.0))
+    scene, cam, lens = receding_floor(320, 240, 20.0)
     r = get_backend("quad", scene)
     try:
         frames = {"thin lens (64 passes)": make_references(r, cam, lens, RenderSettings(), 64, False,

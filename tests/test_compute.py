@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import assert_matches_reference, psnr, random_scene
+from conftest import psnr, random_scene
 from inria_folder import SCENES
 
 from dofview.bench import synth

@@ -13,6 +13,7 @@ import pytest
 from dofview.bench.metrics import psnr
 from dofview.bench.primitives import Parts, add_panel
 from dofview.bench.sliced_study import ANCHOR
+from dofview.bench.synth import receding_floor
 from dofview.bench.variants import make_references
 from dofview.camera import look_at
 from dofview.cli import main
@@ -141,11 +142,7 @@ def test_slanted_floor_follows_the_cpu_twin():
     """A uniform grey floor from z = 0.5 to 9 crosses many layers: the GL path shows the numpy
     twin's profile down the floor (tests/test_slices.py holds the twin to the thin lens there),
     adding no bands of its own (reduced-resolution levels, guard band, screen boxes)."""
-    parts = Parts.empty()
-    add_panel(parts, 1, 0.6, {0: (-4.0, 4.0), 2: (0.5, 9.0)}, (0.6, 0.6, 0.6), spacing=0.05, opacity=0.98)
-    scene = parts.build("srgb", "floor")
-    cam = look_at((0.0, 0.0, 0.0), (0.0, 0.35, 4.0), 160, 120, 60.0)
-    lens = Lens(3.0, aperture_for_blur(10.0, 3.0, 1.0, 9.0))
+    scene, cam, lens = receding_floor(160, 120, 10.0)
     r = get_backend("quad", scene)
     try:
         gl = r.render(cam, lens, SLICED)

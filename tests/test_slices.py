@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 
 from dofview.bench.metrics import psnr
-from dofview.bench.primitives import Parts, add_panel
+from dofview.bench.synth import receding_floor
 from dofview.bench.variants import make_references
-from dofview.camera import look_at
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.io import load_scene
@@ -298,11 +297,7 @@ def test_slanted_floor_crossing_many_layers_shows_no_seams(monkeypatch):
     cut; the resolve (the sum of blurred visible parts) keeps it as opaque as the thin lens does,
     and the per-pixel CoC blurs it by a radius that follows its depth, so its rows follow the
     lens's (48 pinhole passes averaged in linear light) without bands."""
-    parts = Parts.empty()
-    add_panel(parts, 1, 0.6, {0: (-4.0, 4.0), 2: (0.5, 9.0)}, (0.6, 0.6, 0.6), spacing=0.05, opacity=0.98)
-    scene = parts.build("srgb", "floor")
-    cam = look_at((0.0, 0.0, 0.0), (0.0, 0.35, 4.0), 160, 120, 60.0)
-    lens = Lens(3.0, aperture_for_blur(10.0, 3.0, 1.0, 9.0))
+    scene, cam, lens = receding_floor(160, 120, 10.0)
     r = get_backend("quad", scene)
     try:
         r.sort(cam)

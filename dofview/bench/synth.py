@@ -35,6 +35,7 @@ from dofview.bench.primitives import (
     yaw_matrix,
 )
 from dofview.camera import Camera, look_at
+from dofview.lens import Lens, aperture_for_blur
 from dofview.scene import (
     SH_C0,
     ColourSpace,
@@ -598,6 +599,17 @@ def room_scene() -> GaussianScene:
     add_panel(parts, 1, 1.0, {0: (-3.5, -1.5), 2: (1.2, 2.2)}, (0.2, 0.4, 0.6), 0.05)  # sofa seat
     add_panel(parts, 2, 2.2, {0: (-3.5, -1.5), 1: (0.2, 1.0)}, (0.2, 0.4, 0.6), 0.05)  # sofa back
     return parts.build("srgb", "room")
+
+
+def receding_floor(width: int, height: int, blur: float) -> tuple[GaussianScene, Camera, Lens]:
+    """The sliced mode's seam case: a uniform grey floor of thin Gaussians (x in ±4, y = 0.6 below
+    the eye, z from 0.5 to 9; 27,200 splats, sRGB) seen from the origin towards (0, 0.35, 4) with a
+    60° field of view at ``width`` × ``height`` px, focused at 3 with the aperture whose largest blur
+    over depths 1–9 is ``blur`` px: it crosses a dozen depth layers and every reduced level."""
+    parts = Parts.empty()
+    add_panel(parts, 1, 0.6, {0: (-4.0, 4.0), 2: (0.5, 9.0)}, (0.6, 0.6, 0.6), spacing=0.05, opacity=0.98)
+    camera = look_at((0.0, 0.0, 0.0), (0.0, 0.35, 4.0), width, height, 60.0)
+    return parts.build("srgb", "floor"), camera, Lens(3.0, aperture_for_blur(blur, 3.0, 1.0, 9.0))
 
 
 def single_gaussian(position, scale: float, opacity: float = 0.2, colour=(1.0, 1.0, 1.0), *,

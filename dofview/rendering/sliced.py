@@ -190,7 +190,7 @@ class SlicedDof:
              cell: LensCell | None = None) -> None:
         """The sliced image of the renderer's scene in its current order into its targets, blurred
         by the kernel of ``cell`` (None: the whole aperture of ``settings``)."""
-        r, ctx = self.r, self.ctx
+        r = self.r
         w, h = camera.width, camera.height
         self._targets(w, h)
         rule = r.slice_rule or rule_for(settings.blades)
@@ -198,6 +198,11 @@ class SlicedDof:
         self._set_cell(cell)
         order = r.front_to_back()
         self.layers = plan_layers(camera_depths(r.scene.means[order], camera), lens, settings.near, rule, math.sqrt(cell.share))
+        if len(self.layers) == 1 and not self.layers[0].lensed and self.layers[0].radius == 0.0:
+            # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
+            # renderer's targets instead of through a layer target, gather and resolve at full size
+            r._splat(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
+            return
         boxes = screen_boxes(r.scene, order, camera, self.layers, settings.near)
         self.frame_fbo.clear(0.0, 0.0, 0.0, 0.0)
         r.fbo.clear(0.0, 0.0, 0.0, 0.0)  # the depth target accumulates the pinhole's depth sums
