@@ -150,7 +150,8 @@ class ComputeBackend(Renderer):
         self._view_key = key
 
     def front_to_back(self) -> np.ndarray:
-        """(N,) uint32 the current depth order, read back (for tests and tools; drawing never reads it)."""
+        """(N,) uint32 the current depth order, read back (the sliced mode cuts it into layers each
+        draw; the per-splat mode never reads it)."""
         if not self.scene.count:  # GL maps no zero-sized range
             return np.zeros(0, np.uint32)
         return np.frombuffer(self._order.read(size=4 * self.scene.count), np.uint32).copy()
@@ -187,16 +188,13 @@ class ComputeBackend(Renderer):
         the frame). When all pairs fit one buffer they are made and sorted once per
         :meth:`_prepare` and every range blends its part of each tile's list; otherwise the range
         is drawn in depth slices, each binned on its own (its pair offsets come back: 8 bytes)."""
-        colour, depth = target.color_attachments[:2]
-        colour.bind_to_image(0, read=True, write=True)
-        depth.bind_to_image(1, read=True, write=True)
         tiles = self._tile_rect(box)
         if self.pairs <= self.max_pairs:
             if not self._binned:
                 self._bin(0, self.scene.count, 0, self.pairs)
                 self._binned = True
             self.slices = 1
-            self._blend_window(first, end, tiles, resume=False)
+            self._blend_window(first, end, target, tiles, resume=False)
             return
         if end > first:
             base = int(np.frombuffer(self._offsets.read(size=4, offset=4 * first), np.uint32)[0])
@@ -207,9 +205,7 @@ class ComputeBackend(Renderer):
         self.slices = len(slices)
         for i, (s_first, s_end, s_base, s_pairs) in enumerate(slices):
             self._bin(s_first, s_end, s_base, s_pairs)
-            colour.bind_to_image(0, read=True, write=True)
-            depth.bind_to_image(1, read=True, write=True)
-            self._blend_window(s_first, s_end, tiles, resume=i > 0)
+            self._blend_window(s_first, s_end, target, tiles, resume=i > 0)
 
     def _tile_rect(self, box: tuple[int, int, int, int] | None) -> tuple[int, int, int, int]:
         """The tiles (tx0, ty0, tx1, ty1), rows of tiles from the bottom as the targets store them,
@@ -310,11 +306,16 @@ class ComputeBackend(Renderer):
         take = self.loop_limit // (self.pix ** 2 + 1) if self.loop_limit is not None else None  # splats a pass
         self._passes = (take, self._longest_range(tiles)) if take is not None and pairs > take else None
 
-    def _blend_window(self, first: int, end: int, tiles: tuple[int, int, int, int], resume: bool) -> None:
-        """Blend the binned pairs of ranks [first, end) into the bound targets, in ``tiles``."""
+    def _blend_window(self, first: int, end: int, target: moderngl.Framebuffer,
+                      tiles: tuple[int, int, int, int], resume: bool) -> None:
+        """Blend the binned pairs of ranks [first, end) into ``target``'s colour and depth-sum
+        textures, in ``tiles``."""
         tx0, ty0, tx1, ty1 = tiles
         if tx1 <= tx0 or ty1 <= ty0:
             return
+        colour, depth = target.color_attachments[:2]
+        colour.bind_to_image(0, read=True, write=True)
+        depth.bind_to_image(1, read=True, write=True)
         b = self._blend
         b["u_tau"].value = self._tau
         b["u_size"].value = (self.camera.width, self.camera.height)

@@ -82,6 +82,8 @@ def stage_points(n: int, spread: float = SPREAD, layout: str = "cvt") -> np.ndar
 CELL_GRID = 512
 """Samples across the lens's diameter that measure each lens cell (its share, centroid, neighbours
 and reach): a 512 × 512 grid, ≈ 206k points on the disk."""
+CELL_CHUNK = 16384
+"""Samples whose distances to the generators are held at once."""
 
 
 @functools.lru_cache(maxsize=32)
@@ -101,25 +103,29 @@ def lens_cells(n: int, blades: int = 0, rotation: float = 0.0) -> tuple[LensCell
     g = (np.arange(CELL_GRID) + 0.5) * step - 1.0
     u = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
     u = u[aperture.inside(u)]
-    dist = np.sum(gen * gen, axis=1)[None, :] - 2.0 * u @ gen.T  # |u − g|² less |u|²: the same order
-    two = np.argpartition(dist, 1, axis=1)[:, :2]
-    first = np.take_along_axis(dist, two, 1).argmin(axis=1)
-    own, second = two[np.arange(len(u)), first], two[np.arange(len(u)), 1 - first]
+    # each sample's nearest and second-nearest generator, in chunks (all at once would hold
+    # samples × n distances: 420 MB at n = 256)
+    own, second = np.empty(len(u), np.int64), np.empty(len(u), np.int64)
+    sq = np.sum(gen * gen, axis=1)
+    for s in range(0, len(u), CELL_CHUNK):
+        dist = sq[None, :] - 2.0 * u[s:s + CELL_CHUNK] @ gen.T  # |u − g|² less |u|²: the same order
+        two = np.argpartition(dist, 1, axis=1)[:, :2]
+        near = np.take_along_axis(dist, two, 1).argmin(axis=1)
+        rows = np.arange(len(two))
+        own[s:s + CELL_CHUNK], second[s:s + CELL_CHUNK] = two[rows, near], two[rows, 1 - near]
+    # the samples grouped by cell: shares, centroids, reaches and neighbours in one pass each
+    count = np.bincount(own, minlength=len(gen))
+    centroid = np.stack([np.bincount(own, u[:, k], len(gen)) for k in (0, 1)], 1) / np.maximum(count, 1)[:, None]
+    far = np.zeros(len(gen))
+    np.maximum.at(far, own, np.hypot(*(u - centroid[own]).T))
+    pairs = np.unique(own * len(gen) + second)
     cells = []
-    for i in range(len(gen)):
-        mine = own == i
-        if not mine.any():
-            continue
-        point = u[mine].mean(axis=0)
-        planes = []
-        for j in np.unique(second[mine]):
-            normal = gen[j] - gen[i]
-            length = float(np.hypot(*normal))
-            normal = normal / length
-            planes.append((normal[0], normal[1], float(normal @ (0.5 * (gen[i] + gen[j])))))
-        reach = float(np.max(np.hypot(*(u[mine] - point).T))) + step
-        cells.append(LensCell(np.concatenate([np.array(planes).reshape(-1, 3), aperture.planes()]),
-                              not blades, point, float(mine.mean()), reach))
+    for i in np.flatnonzero(count):
+        other = gen[pairs[pairs // len(gen) == i] % len(gen)]  # the neighbours: their bisectors
+        normal = (other - gen[i]) / np.hypot(*(other - gen[i]).T)[:, None]
+        planes = np.c_[normal, np.sum(normal * (0.5 * (gen[i] + other)), 1)]
+        cells.append(LensCell(np.concatenate([planes, aperture.planes().reshape(-1, 3)]), not blades,
+                              centroid[i], float(count[i] / len(u)), float(far[i]) + step))
     total = sum(c.share for c in cells)
     return tuple(replace(c, share=c.share / total) for c in cells)
 

@@ -225,7 +225,7 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
     order = np.argsort(z, kind="stable")
     cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-    plan = plan_layers(camera_depths(scene.means[order], camera), lens, settings.near, rule, math.sqrt(cell.share))  # as GL
+    plan = plan_layers(camera_depths(scene.means, camera)[order], lens, settings.near, rule, math.sqrt(cell.share))  # as GL
     per_splat = replace(settings, dof="splat")
     encoded = scene.colour_space == "srgb" and not settings.blend_linear
     if not plan:  # nothing in front of the near plane

@@ -320,7 +320,7 @@ def from_blend_space(rgba: np.ndarray, encoded: bool) -> np.ndarray:
 
 def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, lens: Lens, layer: Layer,
             rule: SliceRule, cell: LensCell, taps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One layer made ready for its gather at its level 1/s (slice_visible.comp, slice_reduce.comp,
+    """One layer made ready for its gather at its level 1/s (slice_visible.comp, slice_reduce.frag,
     slice_prepare.frag).
 
     ``colour`` (H, W, 4) its blend-space premultiplied RGBA, ``depth_sums`` (H, W, 4) its
@@ -352,7 +352,7 @@ def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, l
 
 def reduce2(x: np.ndarray) -> np.ndarray:
     """(⌈h/2⌉, ⌈w/2⌉, …) averages of the 2 × 2 blocks of ``x`` (h, w, …) from the origin, each
-    over the texels of its block inside ``x`` (slice_reduce.comp)."""
+    over the texels of its block inside ``x`` (slice_reduce.frag)."""
     h, w = x.shape[:2]
     ph, pw = h % 2, w % 2
     pad = ((0, ph), (0, pw)) + ((0, 0),) * (x.ndim - 2)
