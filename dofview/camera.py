@@ -33,6 +33,9 @@ class Camera:
             (0 at construction: this camera's own width). :meth:`resized` keeps it, so
             :meth:`scaled_aperture` makes A follow f_x (A = f_x·D, D the lens diameter) and the
             same command at another size gives the same picture, scaled.
+        guard: pixels by which this image extends beyond the frame on every side (the sliced
+            mode's guard band, :meth:`guarded`): width, height, cx and cy are the extended image's,
+            and the EWA frustum clamp (:meth:`frustum_limits`) keeps to the frame inside it.
     """
 
     width: int
@@ -45,6 +48,7 @@ class Camera:
     T: np.ndarray
     name: str = ""
     ref_width: int = 0
+    guard: int = 0
 
     def __post_init__(self) -> None:
         if self.ref_width <= 0:
@@ -85,6 +89,22 @@ class Camera:
         sx, sy = width / self.width, height / self.height
         return replace(self, width=int(width), height=int(height), fx=self.fx * sx, fy=self.fy * sy,
                        cx=self.cx * sx, cy=self.cy * sy)
+
+    def guarded(self, pixels: int) -> "Camera":
+        """This view's image extended by ``pixels`` on every side (a guard band): the frame's pixels
+        keep their coordinates shifted by ``pixels``, and every Gaussian its footprint, since the
+        frustum clamp stays the frame's (:meth:`frustum_limits`)."""
+        return replace(self, width=self.width + 2 * pixels, height=self.height + 2 * pixels, cx=self.cx + pixels,
+                       cy=self.cy + pixels, guard=self.guard + pixels)
+
+    def frustum_limits(self) -> tuple[float, float, float, float]:
+        """(lo_x, lo_y, hi_x, hi_y) the limits of x/z and y/z to which EWA splatting clamps a mean
+        for its Jacobian (project.glsl): 15 % of the frame beyond its edges (the frame inside a
+        guard band), so that Gaussians far off screen keep a bounded footprint."""
+        g = self.guard
+        w, h, cx, cy = self.width - 2 * g, self.height - 2 * g, self.cx - g, self.cy - g
+        return ((-cx - 0.15 * w) / self.fx, (-cy - 0.15 * h) / self.fy,
+                (w - cx + 0.15 * w) / self.fx, (h - cy + 0.15 * h) / self.fy)
 
     def lens_shifted(self, u: float, v: float, focus: float) -> "Camera":
         """The pinhole camera seen from lens point (u, v) (scene units, camera x/y) that keeps the

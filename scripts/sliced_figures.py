@@ -40,7 +40,7 @@ def over_only(renderer, cam, lens) -> Frame:
     equal to the GL path to 90 dB) with its resolve left out."""
     renderer.sort(cam)
     order = renderer.front_to_back()
-    plan = slices.plan_layers(camera_depths(renderer.scene.means[order], cam), lens, 0.01)
+    plan = slices.plan_layers(camera_depths(renderer.scene.means[order], cam), lens, 0.01, frame=max(cam.width, cam.height))
     layers = []
     for layer in plan:
         sub = get_backend("quad", renderer.scene.subset(order[layer.first:layer.end]), ctx=renderer.ctx)

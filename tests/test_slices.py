@@ -55,6 +55,33 @@ def test_slice_edges_grow_from_a_focus_slice_and_cover_the_range():
     assert e[0] >= 12.0 and e[-1] <= -30.0
 
 
+def test_layers_widen_threefold_beyond_an_eighth_of_the_frame():
+    narrow = slice_edges(-5.0, 100.0, SLICE_RULE)
+    wide = slice_edges(-5.0, 100.0, SLICE_RULE, frame=160.0)  # beyond 20 px of CoC
+    np.testing.assert_array_equal(wide[wide <= 20.0 + 1e-9][-len(narrow[narrow <= 20.0]):], narrow[narrow <= 20.0])
+    front = wide[::-1][wide[::-1] > 0]  # ascending edges in front of focus
+    steps = np.diff(front)
+    grown = np.nonzero(front[:-1] >= 20.0)[0]
+    assert len(grown) >= 1 and np.allclose(steps[grown[1:]] / steps[grown[:-1]], 3.0)
+    assert len(wide) <= len(narrow) - 6  # 4 layers beyond 20 px instead of 10
+    with pytest.raises(DofviewError):
+        SliceRule(wide_growth=1.0)
+
+
+def test_edges_snap_into_the_widest_gap_between_splats_within_their_reach():
+    edges = np.array([40.0, 30.0, 20.0, 10.0])
+    # about the edge at 30 (it may move 3 px) the widest gap between splats runs from 30.5 to
+    # 32.5, and the edge moves to its middle; no splat lies within 3 px of the edge at 20: it stays
+    c = np.array([39.0, 35.0, 32.8, 32.5, 30.5, 30.2, 29.9, 28.4, 28.0, 27.5, 24.0, 16.0, 12.0])
+    out = slices.snap_edges(edges, c, 0.3)
+    assert out[0] == 40.0 and out[-1] == 10.0  # the ends stay
+    assert out[1] == pytest.approx(31.5)
+    assert out[2] == pytest.approx(20.0)
+    assert np.all(np.abs(out - edges) <= 0.3 * 10.0 + 1e-12)
+    np.testing.assert_array_equal(slices.snap_edges(edges, c, 0.0), edges)
+    np.testing.assert_array_equal(slices.snap_edges(edges, np.zeros(0), 0.3), edges)
+
+
 def test_layers_are_contiguous_ranges_and_huge_coc_splats_are_set_aside():
     z = np.array([-1.0, 0.005, 0.02, 0.5, 1.0, 1.0, 2.0, 50.0], np.float32)  # draw order, nearest first
     lens = Lens(1.0, 20.0)  # c = 10·(1/z − 1)
@@ -182,12 +209,12 @@ def test_lens_cells_add_up_to_the_whole_lens(n, blades):
 
 
 # ---- the passes -------------------------------------------------------------------------------------
-def _scatter(rho: np.ndarray, colour: np.ndarray, cell) -> tuple[np.ndarray, np.ndarray]:
+def _scatter(rho: np.ndarray, colour: np.ndarray, cell, edges=(True,) * 4) -> tuple[np.ndarray, np.ndarray]:
     """slices.scatter of colour (h, w, 4) of signed CoC ``rho`` (h, w), prepared as slices.prepare does."""
     taps = cell.taps(float(np.abs(rho).max()))
     norm = cell.weights(taps, rho.astype(np.float32)).sum(axis=0, dtype=np.float64)
     b = np.stack([rho, colour[..., 3] / norm], -1)
-    return scatter(colour / norm[..., None], b, cell, taps)
+    return scatter(colour / norm[..., None], b, cell, taps, edges)
 
 
 def test_scatter_spreads_each_pixel_over_its_own_kernel_and_keeps_its_light():
@@ -213,12 +240,65 @@ def test_scatter_spreads_each_pixel_over_its_own_kernel_and_keeps_its_light():
     np.testing.assert_allclose(out, colour, atol=1e-12)
 
 
-def test_guard_band_keeps_coverage_at_the_frame_border():
+def test_beyond_the_image_the_gather_repeats_the_edge_only_where_the_layer_goes_on():
     full = np.ones((30, 40, 4))
     cell = Aperture().whole()
     out, vis = _scatter(np.full((30, 40), -6.0), full, cell)
     np.testing.assert_allclose(out, 1.0, rtol=1e-6)  # the border repeats: a wall stays opaque to the edge
     np.testing.assert_allclose(vis, 1.0, rtol=1e-6)
+    # a layer that ends at the image's left side (and only there) reads nothing beyond it: its
+    # light spreads out of the image there, and every other side still repeats
+    out, _ = _scatter(np.full((30, 40), -6.0), full, cell, (False, True, True, True))
+    np.testing.assert_allclose(out[:, 10:], 1.0, rtol=1e-6)
+    k = aperture_kernel(6.0)
+    n = k.shape[0] // 2
+    assert out[15, 0, 3] == pytest.approx(k[:, n:].sum(), rel=1e-6)  # the part of the disk inside, ≈ ½
+    assert np.all(np.diff(out[15, :7, 3]) > 0)  # rising to full coverage 6 px in
+
+
+def test_pad_sides_repeats_the_named_sides_and_a_corner_only_where_both_do():
+    x = np.arange(1.0, 7.0).reshape(2, 3)  # GL orientation: row 0 at the bottom
+    p = slices.pad_sides(x, 1, (True, False, False, True))  # left, bottom, right, top
+    assert p.shape == (4, 5)
+    np.testing.assert_array_equal(p[0], 0.0)  # below: zeros
+    np.testing.assert_array_equal(p[1:3, 4], 0.0)  # right: zeros
+    np.testing.assert_array_equal(p[1:3, 0], x[:, 0])  # left: repeated
+    np.testing.assert_array_equal(p[3, 1:4], x[-1])  # top: repeated
+    assert p[3, 0] == x[-1, 0] and p[3, 4] == 0.0 and p[0, 0] == 0.0
+
+
+def _layer(radius: float, scale: int = 1) -> slices.Layer:
+    return slices.Layer(0, 1, False, radius, scale)
+
+
+def test_guard_band_covers_what_the_blurs_reach_beyond_the_frame_in_doubling_steps():
+    rule, w, h = SLICE_RULE, 240, 180
+    inside = (10, 10, 200, 150)
+    assert slices.guard_band([_layer(50.0, 16)], [inside], w, h, rule) == 0  # nothing beyond the frame
+    # a focus layer overhangs everywhere, but repeating the edge serves a blur of 2 px
+    assert slices.guard_band([_layer(0.5)], [(-40, -40, 280, 220)], w, h, rule) == 0
+    # a blurred layer 20 px beyond the left side: the smallest band; 40 px: the next
+    assert slices.guard_band([_layer(50.0, 16)], [(-20, 10, 200, 150)], w, h, rule) == slices.GUARD_STEP
+    assert slices.guard_band([_layer(50.0, 16)], [(10, 10, 200, 220)], w, h, rule) == 2 * slices.GUARD_STEP
+    # no more than the layer's reach, however far its Gaussians go
+    assert slices.guard_band([_layer(10.0, 2)], [(-500, 10, 200, 150)], w, h, rule) == slices.GUARD_STEP
+    # at most SliceRule.guard of the larger side (rounded up to a step): 0.25 · 240 → 64
+    assert slices.guard_band([_layer(300.0, 64)], [(-500, 10, 200, 150)], w, h, rule) == 64
+    assert slices.guard_band([_layer(300.0, 64)], [(-500, 10, 200, 150)], w, h, replace(rule, guard=0.0)) == 0
+
+
+def test_layer_windows_and_edges_follow_each_layers_reach_and_overhang():
+    w, h, guard = 240, 180, 64
+    layers = [_layer(0.5), _layer(20.0, 4), _layer(300.0, 64)]
+    boxes = [(-30, -30, 270, 210), (-500, 5, 100, 100), (-500, 5, 100, 400)]
+    windows = slices.layer_windows(layers, boxes, w, h, guard)
+    reach = [slices.layer_reach(layer) for layer in layers]
+    assert reach == [3, 28, 428]
+    assert windows[0] == (guard - 3, guard - 3, guard + w + 3, guard + h + 3)  # a focus layer: its own 3 px
+    assert windows[1] == (guard - 28, guard + 5, guard + 100, guard + 100)
+    assert windows[2] == (0, guard + 5, guard + 100, 2 * guard + h)  # to the guarded image's sides
+    edges = slices.layer_edges(boxes, w, h, guard)  # (left, bottom, right, top), GL orientation
+    assert edges == [(False, False, False, False), (True, False, False, False), (True, True, False, False)]
 
 
 def test_levels_average_the_texels_inside_and_upsample_with_aligned_centres():

@@ -211,8 +211,7 @@ class Renderer(ABC):
         """Blend Gaussians [first, end) of the front-to-back order, as :meth:`_prepare` set up, into
         ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized), whose pixels
         the caller cleared. ``box``: (x0, y0, x1, y1) image pixels (rows from the top, ends
-        exclusive) outside which the range draws nothing (None: anywhere); a backend may write
-        the whole tiles around it."""
+        exclusive) outside which the range writes nothing (None: anywhere)."""
 
     @abstractmethod
     def front_to_back(self) -> np.ndarray:

@@ -117,7 +117,8 @@ class ComputeBackend(Renderer):
         """(tile, Gaussian) pairs of the last draw."""
         self.slices = 0
         """Depth slices the last draw needed (1 unless its pairs exceeded :attr:`max_pairs`)."""
-        self._tiles = (0, 0)  # tiles across and down of the frame being drawn
+        self._tiles = (0, 0)  # tiles across and down of the image being drawn
+        self._image = (0, 0)  # its size (a guarded image's in the sliced mode)
         self._tau = 0.0
         self._binned = False  # the pairs of the last _prepare are made and sorted (one buffer holds them)
         self._vals: moderngl.Buffer | None = None  # the sorted pairs' ranks
@@ -173,6 +174,7 @@ class ComputeBackend(Renderer):
         """Preprocess and scan the tile counts of all Gaussians (no read-back but the pair totals);
         the pairs are made and sorted by the first :meth:`_splat_range` that follows."""
         self._tiles = (-(-camera.width // self.tile), -(-camera.height // self.tile))
+        self._image = (camera.width, camera.height)
         self._tau = settings.tau
         self.pairs = 0
         self._binned = False
@@ -184,17 +186,20 @@ class ComputeBackend(Renderer):
     def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
                      box: tuple[int, int, int, int] | None = None) -> None:
         """Rasterise Gaussians [first, end) of the depth order into ``target``'s textures, writing
-        the whole tiles that cover ``box`` (image pixels (x0, y0, x1, y1), rows from the top; None:
-        the frame). When all pairs fit one buffer they are made and sorted once per
+        the pixels of ``box`` (image pixels (x0, y0, x1, y1), rows from the top; None: the image).
+        When all pairs fit one buffer they are made and sorted once per
         :meth:`_prepare` and every range blends its part of each tile's list; otherwise the range
         is drawn in depth slices, each binned on its own (its pair offsets come back: 8 bytes)."""
-        tiles = self._tile_rect(box)
+        width, height = self._image
+        x0, y0, x1, y1 = box or (0, 0, width, height)
+        pixels = (x0, height - y1, x1, height - y0)  # GL rows
+        tiles = self._tile_rect(pixels)
         if self.pairs <= self.max_pairs:
             if not self._binned:
                 self._bin(0, self.scene.count, 0, self.pairs)
                 self._binned = True
             self.slices = 1
-            self._blend_window(first, end, target, tiles, resume=False)
+            self._blend_window(first, end, target, tiles, pixels, resume=False)
             return
         if end > first:
             base = int(np.frombuffer(self._offsets.read(size=4, offset=4 * first), np.uint32)[0])
@@ -205,18 +210,15 @@ class ComputeBackend(Renderer):
         self.slices = len(slices)
         for i, (s_first, s_end, s_base, s_pairs) in enumerate(slices):
             self._bin(s_first, s_end, s_base, s_pairs)
-            self._blend_window(s_first, s_end, target, tiles, resume=i > 0)
+            self._blend_window(s_first, s_end, target, tiles, pixels, resume=i > 0)
 
-    def _tile_rect(self, box: tuple[int, int, int, int] | None) -> tuple[int, int, int, int]:
-        """The tiles (tx0, ty0, tx1, ty1), rows of tiles from the bottom as the targets store them,
-        that cover ``box`` (image pixels, rows from the top; None: all)."""
+    def _tile_rect(self, pixels: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+        """The tiles (tx0, ty0, tx1, ty1) that cover ``pixels`` (x0, y0, x1, y1), rows of tiles and
+        of pixels from the bottom as the targets store them."""
         tx, ty = self._tiles
-        if box is None:
-            return 0, 0, tx, ty
-        height = self.camera.height
-        x0, y0, x1, y1 = box
-        return (x0 // self.tile, (height - y1) // self.tile, min(-(-x1 // self.tile), tx),
-                min(-(-(height - y0) // self.tile), ty))
+        x0, y0, x1, y1 = pixels
+        return (max(x0, 0) // self.tile, max(y0, 0) // self.tile, min(-(-x1 // self.tile), tx),
+                min(-(-y1 // self.tile), ty))
 
     def _preprocess(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
                     tiles: tuple[int, int]) -> None:
@@ -307,9 +309,9 @@ class ComputeBackend(Renderer):
         self._passes = (take, self._longest_range(tiles)) if take is not None and pairs > take else None
 
     def _blend_window(self, first: int, end: int, target: moderngl.Framebuffer,
-                      tiles: tuple[int, int, int, int], resume: bool) -> None:
+                      tiles: tuple[int, int, int, int], pixels: tuple[int, int, int, int], resume: bool) -> None:
         """Blend the binned pairs of ranks [first, end) into ``target``'s colour and depth-sum
-        textures, in ``tiles``."""
+        textures, in ``tiles``, writing ``pixels`` (x0, y0, x1, y1, GL rows) of them."""
         tx0, ty0, tx1, ty1 = tiles
         if tx1 <= tx0 or ty1 <= ty0:
             return
@@ -318,7 +320,7 @@ class ComputeBackend(Renderer):
         depth.bind_to_image(1, read=True, write=True)
         b = self._blend
         b["u_tau"].value = self._tau
-        b["u_size"].value = (self.camera.width, self.camera.height)
+        b["u_box"].value = pixels
         b["u_tiles_x"].value = self._tiles[0]
         b["u_window"].value = (first, end)
         b["u_tile_origin"].value = (tx0, ty0)

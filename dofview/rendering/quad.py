@@ -125,10 +125,14 @@ class QuadBackend(Renderer):
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
         self.ctx.blend_equation = moderngl.FUNC_ADD
+        if box is not None:  # a depth slice's window: what lies beyond stays as it was
+            x0, y0, x1, y1 = box
+            self.ctx.scissor = (x0, target.height - y1, max(x1 - x0, 0), max(y1 - y0, 0))
         if end > first:
             self.program["u_first"].value = self.scene.count - end  # the order buffer runs back to front
             self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=end - first)
         self.ctx.disable(moderngl.BLEND)
+        self.ctx.scissor = None
 
     def _release_backend(self) -> None:
         if self._thread is not None:

@@ -30,7 +30,19 @@ from dofview.lens import (
     normalise_opacity,
 )
 from dofview.rendering.depth_order import camera_depths
-from dofview.rendering.slices import Aperture, LensCell, SliceRule, from_blend_space, plan_layers, rule_for, sliced_image
+from dofview.rendering.slices import (
+    Aperture,
+    LensCell,
+    SliceRule,
+    from_blend_space,
+    guard_band,
+    layer_edges,
+    layer_windows,
+    plan_layers,
+    rule_for,
+    screen_boxes,
+    sliced_image,
+)
 from dofview.scene import SH_C0, GaussianScene
 from dofview.tonemap import decode
 
@@ -93,10 +105,11 @@ def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSe
     idx = np.nonzero(keep)[0]
     idx = idx[np.argsort(t[idx, 2], kind="stable")]
     t = t[idx]
-    fx, fy, cx, cy, w, h = camera.fx, camera.fy, camera.cx, camera.cy, camera.width, camera.height
+    fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
     iz = 1.0 / t[:, 2]
-    tx = np.clip(t[:, 0] * iz, (-cx - 0.15 * w) / fx, (w - cx + 0.15 * w) / fx)
-    ty = np.clip(t[:, 1] * iz, (-cy - 0.15 * h) / fy, (h - cy + 0.15 * h) / fy)
+    lo_x, lo_y, hi_x, hi_y = camera.frustum_limits()
+    tx = np.clip(t[:, 0] * iz, lo_x, hi_x)
+    ty = np.clip(t[:, 1] * iz, lo_y, hi_y)
     R = camera.R
     a = (fx * iz)[:, None] * (R[0][None] - tx[:, None] * R[2][None])
     c = (fy * iz)[:, None] * (R[1][None] - ty[:, None] * R[2][None])
@@ -225,15 +238,26 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
     order = np.argsort(z, kind="stable")
     cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-    plan = plan_layers(camera_depths(scene.means, camera)[order], lens, settings.near, rule, math.sqrt(cell.share))  # as GL
+    plan = plan_layers(camera_depths(scene.means, camera)[order], lens, settings.near, rule, math.sqrt(cell.share),
+                       max(camera.width, camera.height))  # as GL
     per_splat = replace(settings, dof="splat")
     encoded = scene.colour_space == "srgb" and not settings.blend_linear
     if not plan:  # nothing in front of the near plane
         return render_reference(scene, camera, lens, per_splat, tile)
+    # the guard band and the layers' windows as the GL path takes them (from the same boxes)
+    boxes = screen_boxes(scene, scene.scales.max(axis=1), order, camera, plan, settings.near)
+    guard = guard_band(plan, boxes, camera.width, camera.height, rule)
+    windows = layer_windows(plan, boxes, camera.width, camera.height, guard)
+    edges = layer_edges(boxes, camera.width, camera.height, guard)
+    guarded = camera.guarded(guard)
     layers = []
-    for layer in plan:
+    for layer, (x0, y0, x1, y1) in zip(plan, windows):
         sub = scene.subset(order[layer.first:layer.end])
-        blend, sums, _ = _blend(sub, camera, lens if layer.lensed else Lens(lens.focus, 0.0), per_splat, tile)
+        blend, sums, _ = _blend(sub, guarded, lens if layer.lensed else Lens(lens.focus, 0.0), per_splat, tile)
+        outside = np.ones(blend.shape[:2], bool)
+        outside[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = False
+        blend[outside] = 0.0
+        sums[outside] = 0.0
         layers.append((blend, sums))
-    colour, sums = sliced_image(layers, plan, lens, rule, cell)
+    colour, sums = sliced_image(layers, plan, lens, rule, cell, guard, edges)
     return _frame(colour, sums, encoded)

@@ -2,12 +2,14 @@
 of slices.py.
 
 The backend's draw order, nearest first, is cut into contiguous layers by signed CoC
-c = ½·A·(1/z − 1/d_f) px (slices.plan_layers). Front to back, each layer is blended by the backend
-as a pinhole with the frame's τ (:meth:`Renderer._splat_range`) into one reused slice target, then
+c = ½·A·(1/z − 1/d_f) px (slices.plan_layers). Every pass works in the frame extended by the
+guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum clamp).
+Front to back, each layer is blended by the backend as a pinhole with the frame's τ
+(:meth:`Renderer._splat_range`, within slices.layer_windows) into one reused slice target, then
 
-1. glsl/slice_visible.comp adds its depth sums under their transmittance to the renderer's depth
-   target (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps the
-   layer's visible coverage beside them;
+1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
+   accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
+   the layer's visible coverage beside them;
 2. slice_reduce.frag averages it 2 × 2 down to its level 1/s, clearing the slice target on the
    way (a full-resolution layer is cleared after its prepare), and slice_prepare.frag gives each
    texel its signed blur (the CoC of its mean inverse depth) and divides it by the kernel's N;
@@ -17,16 +19,18 @@ as a pinhole with the frame's τ (:meth:`Renderer._splat_range`) into one reused
    (the consecutive layers of one level), which slice_upsample.frag composites into the frame's
    once the run ends;
 
-and slice_resolve.frag writes the renderer's colour target: "over", scaled up to the visible
-coverage where a cut between layers left it short. With a finite SliceRule.huge the splats beyond
+and slice_resolve.frag writes the frame into the renderer's targets: "over", scaled up to the
+visible coverage where a cut between layers left it short, and the accumulated depth sums. With a finite SliceRule.huge the splats beyond
 it form a front and a back layer drawn by the per-splat method (the benchmark's comparison). At
 A = 0 there is one layer, not blurred: the pinhole frame, drawn straight into the renderer's targets.
 
 Only the pixels a layer's Gaussians can reach (:func:`screen_boxes`) and its blur around them are
-processed. GPU memory (:attr:`SlicedDof.gpu_bytes`): at full resolution the slice colour and depth
-sums, the two accumulators and the prepared layer (RGBA32F ×5 and RG32F: 88 B per pixel), and per
-reduced level s the layer averaged down, prepared, and a run's accumulators (88/s² B per pixel):
-≤ 117 B per pixel in all (≈ 117 MB per megapixel) besides the renderer's own targets.
+processed. GPU memory (:attr:`SlicedDof.gpu_bytes`), per pixel of the guarded image: at full
+resolution the slice colour and depth sums, the two accumulators, the depth accumulator and the
+prepared layer (RGBA32F ×6 and RG32F: 104 B), and per reduced level s the layer averaged down,
+prepared, and a run's accumulators (88/s² B): ≤ 134 B in all besides the renderer's own targets
+(≈ 134 MB per megapixel of frame without a band; the widest band, a quarter of a 16:9 frame's
+width on every side, makes the image 3× the frame's pixels).
 """
 
 from __future__ import annotations
@@ -43,46 +47,25 @@ from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.depth_order import camera_depths
 from dofview.rendering.gl import compute_shader, float32_uniform, load_shader
-from dofview.rendering.slices import Aperture, Layer, LensCell, SliceRule, plan_layers, rule_for
+from dofview.rendering.slices import (
+    Aperture,
+    Box,
+    Layer,
+    LensCell,
+    SliceRule,
+    guard_band,
+    layer_edges,
+    layer_windows,
+    plan_layers,
+    rule_for,
+    screen_boxes,
+)
 
 MAX_TAPS = 256
 """Size of the shaders' tap array: a disk of up to 8.5 px at its level (slices.plan_layers: the
 largest radius at a level is the rule's limit + 2, 8 with blades)."""
 MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
-Box = tuple[int, int, int, int]
-"""(x0, y0, x1, y1) pixels of a target, rows from the bottom as GL stores them, ends exclusive."""
-
-
-def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, layers: list[Layer],
-                 near: float) -> list[Box]:
-    """Per layer the pixels its blend can touch, (x0, y0, x1, y1) image pixels, rows from the
-    top, ends exclusive, clipped to the frame: the union of its Gaussians' 3σ boxes, with σ
-    bounded by the largest scale (``largest``, (N,) float32 in scene order) through the norm of
-    the projection's Jacobian (the frustum clamp of project.glsl, ±15 % beyond the frame), the
-    0.3 px² low-pass and a pixel of margin; a lensed layer (blurred by the lens as drawn) anywhere.
-    Every draw runs it: float32, and the layers' ranges reduced in one pass (≈ 15 ms a million
-    Gaussians on one core)."""
-    w, h = camera.width, camera.height
-    live = [layer for layer in layers if not layer.lensed]  # contiguous: lensed layers are the ends
-    if not live:
-        return [(0, 0, w, h)] * len(layers)
-    # the footprints in the scene's own order (contiguous arithmetic), then four 1-D gathers into
-    # the draw order: gathering the (N, 3) means by the order instead costs ten times as much
-    t = scene.means @ camera.R.T.astype(np.float32) + camera.T.astype(np.float32)
-    z = np.maximum(t[:, 2], np.float32(near))
-    tx = np.clip(t[:, 0] / z, (-camera.cx - 0.15 * w) / camera.fx, (1.15 * w - camera.cx) / camera.fx)
-    ty = np.clip(t[:, 1] / z, (-camera.cy - 0.15 * h) / camera.fy, (1.15 * h - camera.cy) / camera.fy)
-    gain = np.float32(max(camera.fx, camera.fy)) / z * np.sqrt(1.0 + tx * tx + ty * ty)
-    reach = 3.0 * np.sqrt((gain * largest) ** 2 + np.float32(0.3)) + 1.0
-    u, v = camera.fx * t[:, 0] / z + camera.cx, camera.fy * t[:, 1] / z + camera.cy
-    first = live[0].first
-    idx = order[first:live[-1].end]
-    starts = np.array([layer.first - first for layer in live])
-    x0, y0 = (np.clip(np.floor(np.minimum.reduceat((a - reach)[idx], starts)), 0, n) for a, n in ((u, w), (v, h)))
-    x1, y1 = (np.clip(np.ceil(np.maximum.reduceat((a + reach)[idx], starts)) + 1, 0, n) for a, n in ((u, w), (v, h)))
-    boxes = iter(zip(x0.astype(int), y0.astype(int), x1.astype(int), y1.astype(int)))
-    return [(0, 0, w, h) if layer.lensed else tuple(int(b) for b in next(boxes)) for layer in layers]
 
 
 def _union(a: Box | None, b: Box) -> Box:
@@ -136,6 +119,8 @@ class SlicedDof:
         self._upsample = program("slice_upsample.frag")
         self._resolve = program("slice_resolve.frag")
         self._size: tuple[int, int] | None = None
+        self.guard = 0
+        """The guard band of the last draw, pixels beyond the frame on every side (slices.guard_band)."""
         self._key: tuple[int, int, int] | None = None  # size and the renderer's colour target
         self._levels: dict[int, _Level] = {}
         self.layers: list[Layer] = []
@@ -149,18 +134,20 @@ class SlicedDof:
         return tex
 
     def _targets(self, width: int, height: int) -> None:
-        """Camera-sized targets, and the framebuffer that writes the renderer's colour target (made
-        again with it)."""
+        """Targets the size of the guarded image, and the framebuffer that writes the renderer's
+        targets (made again with them)."""
         key = (width, height, self.r.colour_tex.glo)
         if self._key == key:
             return
         self._release_targets()
         size = (width, height)
-        self.slice_colour, self.slice_depth, self.over, self.visible = (self._texture(size) for _ in range(4))
+        self.slice_colour, self.slice_depth, self.over, self.visible, self.acc_depth = (
+            self._texture(size) for _ in range(5))
         fb = self.ctx.framebuffer
         self.slice_fbo = fb(color_attachments=[self.slice_colour, self.slice_depth])
         self.frame_fbo = fb(color_attachments=[self.over, self.visible])
-        self.colour_fbo = fb(color_attachments=[self.r.colour_tex])
+        self.acc_fbo = fb(color_attachments=[self.acc_depth])
+        self.output_fbo = fb(color_attachments=[self.r.colour_tex, self.r.depth_tex])
         self.slice_fbo.clear(0.0, 0.0, 0.0, 0.0)  # then kept empty: each layer's prepare clears what it reads
         self._size, self._key = size, key
 
@@ -186,7 +173,7 @@ class SlicedDof:
         if self._size is None:
             return 0
         w, h = self._size
-        own = 4 * 16 * w * h
+        own = 5 * 16 * w * h
         for level in self._levels.values():
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
@@ -198,26 +185,31 @@ class SlicedDof:
         by the kernel of ``cell`` (None: the whole aperture of ``settings``)."""
         r = self.r
         w, h = camera.width, camera.height
-        self._targets(w, h)
         rule = r.slice_rule or rule_for(settings.blades)
         cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
         self._set_cell(cell)
         order = r.front_to_back()
         self.layers = plan_layers(camera_depths(r.scene.means, camera)[order], lens, settings.near, rule,
-                                  math.sqrt(cell.share))
+                                  math.sqrt(cell.share), max(w, h))
         if len(self.layers) == 1 and not self.layers[0].lensed and self.layers[0].radius == 0.0:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
             # renderer's targets instead of through a layer target, gather and resolve at full size
             r._splat(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
             return
         boxes = screen_boxes(r.scene, self._largest, order, camera, self.layers, settings.near)
+        self.guard = guard_band(self.layers, boxes, w, h, rule)
+        windows = layer_windows(self.layers, boxes, w, h, self.guard)
+        edges = layer_edges(boxes, w, h, self.guard)
+        camera = camera.guarded(self.guard)  # every pass below works in the guarded image
+        w, h = camera.width, camera.height
+        self._targets(w, h)
         self.frame_fbo.clear(0.0, 0.0, 0.0, 0.0)
-        r.fbo.clear(0.0, 0.0, 0.0, 0.0)  # the depth target accumulates the pinhole's depth sums
+        self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
         lensed = (lens, replace(settings, dof="splat"), False)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
-        for layer, box in zip(self.layers, boxes):
+        for layer, box, sides in zip(self.layers, windows, edges):
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
                 r._prepare(camera, *setup)
@@ -235,6 +227,7 @@ class SlicedDof:
             reach = int(np.abs(taps).max())
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
             out = self._grow(blocks, reach, level)
+            self._gather[0]["u_edge"].value = sides
             if level.run is None:
                 self._gather_layer(level, self.frame_fbo, out)
             else:
@@ -248,7 +241,9 @@ class SlicedDof:
         if run:
             self._end_run(run)
         prog, vao = self._resolve
-        self._pass(prog, vao, self.colour_fbo, {"u_over": 0, "u_visible": 1}, [self.over, self.visible], (0, 0, w, h))
+        g = self.guard
+        self._pass(prog, vao, self.output_fbo, {"u_over": 0, "u_visible": 1, "u_depth": 2, "u_guard": g},
+                   [self.over, self.visible, self.acc_depth], (0, 0, w - 2 * g, h - 2 * g))
 
     @staticmethod
     def _blocks(box: Box, scale: int) -> Box:
@@ -290,7 +285,7 @@ class SlicedDof:
         layer prepared there wrote (the gather reads around its blocks, where the level must be
         empty); the slice target is cleared in ``box`` once read. Returns the level's blocks."""
         s = layer.scale
-        self.r.depth_tex.bind_to_image(0, read=True, write=True)
+        self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
         self._run(self._visible, box)
@@ -373,8 +368,8 @@ class SlicedDof:
 
     def _release_targets(self) -> None:
         if self._size is not None:
-            for obj in (self.slice_fbo, self.frame_fbo, self.colour_fbo, self.slice_colour, self.slice_depth,
-                        self.over, self.visible):
+            for obj in (self.slice_fbo, self.frame_fbo, self.acc_fbo, self.output_fbo, self.slice_colour,
+                        self.slice_depth, self.over, self.visible, self.acc_depth):
                 obj.release()
         for level in self._levels.values():
             level.release()

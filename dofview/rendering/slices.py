@@ -15,8 +15,17 @@ is blurred by a radius that follows its depth without steps. As a gather (:func:
 out(p) = Σ_d L(p − d)·w(d, c(p − d)) / N(c(p − d)), with w the anti-aliased aperture (a disk or
 a polygon, or a cell of a partition of it: :class:`LensCell`) scaled by the source's signed CoC c
 (turned half a turn in front of focus, as a lens shows it) and N(c) = Σ_d w(d, c), so every
-pixel's light is kept exactly; at |c| < ½ it is the identity. Samples beyond the frame repeat its
-edge (a guard band: a wall crossing the border keeps its coverage there).
+pixel's light is kept exactly; at |c| < ½ it is the identity.
+
+The guard band: a layer blurred by c px takes light from up to c px beyond the frame. Where a
+layer's Gaussians reach beyond the frame (:func:`screen_boxes`, not clipped), the layers are
+blended into an image extended on every side (Camera.guarded: the frustum clamp stays the
+frame's, so every footprint is the pinhole's) by what their blurs need (:func:`guard_band`: in
+steps doubling from 32 px, at most a quarter of the frame's larger side), each layer within its
+own reach of the frame (:func:`layer_windows`). Beyond what was rendered the gather repeats the
+edge only on the sides where the layer goes on (:func:`layer_edges`: a wall stays opaque to the
+border) and reads nothing elsewhere: repeating a coarse level's edge texel, which averages a
+block reaching far into the frame, would spread that block over the whole kernel.
 
 Layers whose smallest radius exceeds :attr:`SliceRule.limit` blur at 1/s resolution (s = 2, 4, …):
 the layer is averaged 2 × 2 down to s × s blocks (:func:`reduce2`; pixel radius from the block's
@@ -49,6 +58,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.lens import Lens
 from dofview.tonemap import decode, encode
@@ -69,6 +79,15 @@ class SliceRule:
             blurs at the 1/2ᵏ resolution that brings its smallest radius to ≤ limit.
         spread: β, the variance (px², per axis, per s² − 1) that the box average and the bilinear
             upsampling of a 1/s level add; each radius there is shrunk by it: r′² = r² − 4β(s² − 1).
+        guard: the widest guard band, as a fraction of the frame's larger side (:func:`guard_band`).
+        wide: |c| beyond which layers widen by ``wide_growth`` each instead, as a fraction of the
+            frame's larger side. Blurs that large spread a layer over much of the frame, and
+            compositing blurred layers treats them as independent, while the parts of one object
+            near the lens hide each other through the whole lens (a bush at the lens, cut into
+            fifteen-percent layers, fogs the frame; docs/BENCHMARKS.md, "indoors").
+        wide_growth: the widening factor there (≥ growth).
+        snap: how far an edge between layers may move, as a fraction of the narrower of its two
+            layers, to fall into the widest gap between the splats' CoCs there (:func:`snap_edges`).
     """
 
     width: float = 1.0
@@ -76,6 +95,10 @@ class SliceRule:
     huge: float = math.inf
     limit: float = 3.0
     spread: float = 1.0 / 6.0
+    guard: float = 0.25
+    wide: float = 0.125
+    wide_growth: float = 3.0
+    snap: float = 0.3
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.width) and self.width > 0):
@@ -88,6 +111,13 @@ class SliceRule:
             raise DofviewError(f"full-resolution blur limit must be a finite radius ≥ 1 px, got {self.limit}")
         if not (math.isfinite(self.spread) and self.spread >= 0.0):
             raise DofviewError(f"level spread must be a finite variance ≥ 0, got {self.spread}")
+        if not (self.wide > 0.0 and math.isfinite(self.wide_growth) and self.wide_growth >= self.growth):
+            raise DofviewError(f"wide layers need a threshold > 0 and a growth ≥ {self.growth}, got "
+                               f"{self.wide}, {self.wide_growth}")
+        if not 0.0 <= self.snap < 0.5:
+            raise DofviewError(f"edge snap must be a fraction in [0, ½), got {self.snap}")
+        if not (math.isfinite(self.guard) and self.guard >= 0.0):
+            raise DofviewError(f"guard band must be a finite fraction of the frame ≥ 0, got {self.guard}")
 
 
     def scale(self, radius: float) -> int:
@@ -115,22 +145,46 @@ def signed_coc(depth: np.ndarray, lens: Lens) -> np.ndarray:
     return 0.5 * lens.aperture * (1.0 / np.asarray(depth, np.float64) - lens.inv_focus)
 
 
-def slice_edges(c_min: float, c_max: float, rule: SliceRule) -> np.ndarray:
+def slice_edges(c_min: float, c_max: float, rule: SliceRule, frame: float = math.inf) -> np.ndarray:
     """(K + 1,) float64 layer edges in signed CoC px, descending (front to back), covering
     [max(c_min, −huge), min(c_max, huge)]: the focus layer [−w/2, w/2], then layers of width
-    w·g, w·g², … outwards on either side. Layer i spans edges[i] ≥ c > edges[i + 1]."""
+    w·g, w·g², … outwards on either side, growing by ``wide_growth`` instead beyond
+    ``wide``·``frame`` px (``frame``: the frame's larger side, px). Layer i spans
+    edges[i] ≥ c > edges[i + 1]."""
     lo, hi = max(c_min, -rule.huge), min(c_max, rule.huge)
+    wide = rule.wide * frame
 
     def side(limit: float) -> list[float]:
         out, e, w = [], rule.width / 2, rule.width
         while e < limit:
-            w *= rule.growth
+            w *= rule.growth if e < wide else rule.wide_growth
             e = min(e + w, rule.huge)
             out.append(e)
         return out
 
     half = rule.width / 2
     return np.array(side(hi)[::-1] + [half, -half] + [-e for e in side(-lo)], np.float64)
+
+
+def snap_edges(edges: np.ndarray, c: np.ndarray, snap: float) -> np.ndarray:
+    """``edges`` (K + 1,) descending, each inner one moved within ``snap`` of the narrower of its two
+    layers to the middle of the widest gap between the CoCs ``c`` (N,) px of the splats (in draw
+    order: descending, or nearly for an earlier view's order) there. Blurred layers composite as if
+    independent; an object cut between two of them is blurred as two (a cluster of leaves cut in
+    half loses 6 dB against the lens; docs/BENCHMARKS.md), so cuts go where the splats leave room."""
+    out = edges.copy()
+    if snap <= 0.0 or len(c) == 0:
+        return out
+    neg = -np.asarray(c, np.float64)
+    for i in range(1, len(edges) - 1):
+        d = snap * min(edges[i - 1] - edges[i], edges[i] - edges[i + 1])
+        hi, lo = edges[i] + d, edges[i] - d
+        i0, i1 = np.searchsorted(neg, -hi, side="left"), np.searchsorted(neg, -lo, side="right")
+        inside = np.sort(np.asarray(c[i0:i1], np.float64))
+        points = np.concatenate([[lo], inside[(inside > lo) & (inside < hi)], [hi]])
+        j = int(np.argmax(np.diff(points)))
+        out[i] = 0.5 * (points[j] + points[j + 1])
+    return out
 
 
 @dataclass(frozen=True)
@@ -153,9 +207,10 @@ class Layer:
 
 
 def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = SliceRule(),
-                size: float = 1.0) -> list[Layer]:
+                size: float = 1.0, frame: float = math.inf) -> list[Layer]:
     """The non-empty layers, front to back, of Gaussians at camera depths ``depth`` (N,) scene
     units in draw order, nearest first; those at z ≤ ``near`` (culled) join the layer before them.
+    ``frame``: the frame's larger side px (where layers widen: SliceRule.wide).
     ``size``: the kernel's scale against the whole aperture's (√share of a lens cell: its
     equal-area disk), which sets each layer's resolution: a small cell's shape needs a finer level.
     An order sorted for an earlier view (the viewer's background sort) is nearly sorted: each
@@ -165,7 +220,7 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
     if not live.any():
         return []
     c = signed_coc(depth[live], lens)
-    edges = slice_edges(float(c.min()), float(c.max()), rule)
+    edges = snap_edges(slice_edges(float(c.min()), float(c.max()), rule, frame), c, rule.snap)
     k = len(edges) - 1
     # descending edges: count the edges strictly above c (np.searchsorted wants ascending)
     index = np.clip(k - np.searchsorted(edges[::-1], c, side="left"), 0, k - 1)
@@ -193,6 +248,104 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
         scale = max(rule.scale(lo * size), replace(rule, limit=rule.limit + 2.0).scale(hi * size))
         layers.append(Layer(first, end, False, hi, scale))
     return layers
+
+
+Box = tuple[int, int, int, int]
+"""(x0, y0, x1, y1) pixels, ends exclusive; rows from the top unless said otherwise."""
+GUARD_STEP = 32
+"""The guard band's smallest width px; wider bands double it (so that the targets sized by it are
+made again only when the band's need changes by a factor of two)."""
+GUARD_MIN_REACH = 8
+"""Layers whose blur reaches less than this many px (the focus layers) do not ask for a guard band:
+repeating the frame's edge serves them."""
+
+
+def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, layers: list[Layer],
+                 near: float) -> list[Box]:
+    """Per layer the pixels its blend can touch, (x0, y0, x1, y1) image pixels of ``camera``, rows
+    from the top, ends exclusive, *not* clipped to the frame (the guard band needs to know how far
+    a layer reaches beyond it): the union of its Gaussians' 3σ boxes, with σ bounded by the largest
+    scale (``largest``, (N,) float32 in scene order) through the norm of the projection's Jacobian
+    (clamped as project.glsl clamps it: Camera.frustum_limits), the 0.3 px² low-pass and a pixel
+    of margin; a lensed layer (blurred by the lens as drawn) the frame. Every draw runs it: float32,
+    and the layers' ranges reduced in one pass (≈ 15 ms a million Gaussians on one core)."""
+    w, h = camera.width, camera.height
+    live = [layer for layer in layers if not layer.lensed]  # contiguous: lensed layers are the ends
+    if not live:
+        return [(0, 0, w, h)] * len(layers)
+    # the footprints in the scene's own order (contiguous arithmetic), then four 1-D gathers into
+    # the draw order: gathering the (N, 3) means by the order instead costs ten times as much
+    t = scene.means @ camera.R.T.astype(np.float32) + camera.T.astype(np.float32)
+    z = np.maximum(t[:, 2], np.float32(near))
+    lo_x, lo_y, hi_x, hi_y = camera.frustum_limits()
+    tx, ty = np.clip(t[:, 0] / z, lo_x, hi_x), np.clip(t[:, 1] / z, lo_y, hi_y)
+    gain = np.float32(max(camera.fx, camera.fy)) / z * np.sqrt(1.0 + tx * tx + ty * ty)
+    reach = 3.0 * np.sqrt((gain * largest) ** 2 + np.float32(0.3)) + 1.0
+    u, v = camera.fx * t[:, 0] / z + camera.cx, camera.fy * t[:, 1] / z + camera.cy
+    first = live[0].first
+    idx = order[first:live[-1].end]
+    starts = np.array([layer.first - first for layer in live])
+    # bounded well beyond any guard band, so that the int conversion cannot overflow
+    x0, y0 = (np.clip(np.floor(np.minimum.reduceat((a - reach)[idx], starts)), -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
+    x1, y1 = (np.clip(np.ceil(np.maximum.reduceat((a + reach)[idx], starts)) + 1, -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
+    boxes = iter(zip(x0.astype(int), y0.astype(int), x1.astype(int), y1.astype(int)))
+    return [(0, 0, w, h) if layer.lensed else tuple(int(b) for b in next(boxes)) for layer in layers]
+
+
+def layer_reach(layer: Layer) -> int:
+    """Pixels beyond a layer's own pixels that its blur can reach: its largest radius, a block of
+    its level for the reduction and one for the bilinear upsampling."""
+    return 0 if layer.lensed else math.ceil(layer.radius) + 2 * layer.scale
+
+
+def guard_band(layers: list[Layer], boxes: list[Box], width: int, height: int, rule: SliceRule) -> int:
+    """Pixels of guard band to render beyond the frame on every side: what the layers' blurs need
+    of what lies beyond it (each layer: its overhang beyond the frame, ``boxes`` as
+    :func:`screen_boxes` gives them, up to its reach), in steps doubling from
+    :data:`GUARD_STEP`, at most :attr:`SliceRule.guard` of the frame's larger side (beyond the band
+    the gather repeats its edge). 0 when no layer blurred by :data:`GUARD_MIN_REACH` px or more
+    reaches beyond the frame."""
+    if rule.guard == 0.0:
+        return 0
+    need = 0
+    for layer, (x0, y0, x1, y1) in zip(layers, boxes):
+        reach = layer_reach(layer)
+        if reach >= GUARD_MIN_REACH:
+            need = max(need, min(max(-x0, -y0, x1 - width, y1 - height, 0), reach))
+    if need == 0:
+        return 0
+    cap = -(-int(rule.guard * max(width, height)) // GUARD_STEP) * GUARD_STEP
+    band = GUARD_STEP
+    while band < need:
+        band *= 2
+    return min(band, cap)
+
+
+Edges = tuple[bool, bool, bool, bool]
+"""Per side of a layer's image, GL orientation (left, bottom, right, top): the gather repeats the
+edge beyond it (True: the layer's content goes on beyond what was rendered) or reads nothing."""
+
+
+def layer_edges(boxes: list[Box], width: int, height: int, guard: int) -> list[Edges]:
+    """Per layer, which sides of the guarded image (the frame of ``width`` × ``height`` and
+    ``guard`` pixels on every side) its box (``boxes``, frame pixels, rows from the top) reaches
+    beyond: there the gather repeats the edge (a wall goes on), elsewhere it reads nothing (what
+    lies beyond a layer's own pixels is empty; repeating it would spread an inner block of a
+    coarse level over the whole kernel)."""
+    return [(x0 < -guard, y1 > height + guard, x1 > width + guard, y0 < -guard) for x0, y0, x1, y1 in boxes]
+
+
+def layer_windows(layers: list[Layer], boxes: list[Box], width: int, height: int, guard: int) -> list[Box]:
+    """Per layer the pixels of the guarded image (the frame of ``width`` × ``height`` and ``guard``
+    pixels on every side; rows from the top) where it is blended: its box (``boxes``, frame
+    pixels), within its reach of the frame (what lies farther cannot blur into it) and inside the
+    guarded image. Both paths blend a layer there only (the GL backends cut at it)."""
+    out = []
+    for layer, (x0, y0, x1, y1) in zip(layers, boxes):
+        band = min(guard, layer_reach(layer)) if not layer.lensed else guard
+        lo, hx, hy = guard - band, guard + width + band, guard + height + band
+        out.append((max(x0 + guard, lo), max(y0 + guard, lo), min(x1 + guard, hx), min(y1 + guard, hy)))
+    return out
 
 
 # ---- the aperture ----------------------------------------------------------------------------------
@@ -361,15 +514,28 @@ def reduce2(x: np.ndarray) -> np.ndarray:
     return sums.sum(axis=(1, 3)) / count.reshape(count.shape + (1,) * (x.ndim - 2))
 
 
-def scatter(a: np.ndarray, b: np.ndarray, cell: LensCell, taps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def pad_sides(x: np.ndarray, n: int, edges: Edges) -> np.ndarray:
+    """``x`` (h, w, …), GL orientation, padded by ``n`` on every side: the edge repeated on the
+    sides ``edges`` (left, bottom, right, top) names, zeros elsewhere; a corner is repeated only
+    where both of its sides are."""
+    left, bottom, right, top = edges
+    rest = ((0, 0),) * (x.ndim - 2)
+    for axis, (lo, hi) in ((0, (bottom, top)), (1, (left, right))):
+        for width, repeat in (((n, 0), lo), ((0, n), hi)):
+            pad = ((0, 0), width) if axis else (width, (0, 0))
+            x = np.pad(x, pad + rest, mode="edge") if repeat else np.pad(x, pad + rest)
+    return x
+
+
+def scatter(a: np.ndarray, b: np.ndarray, cell: LensCell, taps: np.ndarray,
+            edges: Edges = (True,) * 4) -> tuple[np.ndarray, np.ndarray]:
     """The gather (slice_gather.frag): every pixel of ``a`` (h, w, 4) spread over the kernel of
     ``cell`` for its own signed CoC b[…, 0] (level px), its visible coverage b[…, 1] alike, read
-    with the edge repeated beyond the frame. Returns the blurred colour (h, w, 4) and visible
-    coverage (h, w)."""
+    beyond the image as :func:`pad_sides` pads it with ``edges``. Returns the blurred colour
+    (h, w, 4) and visible coverage (h, w)."""
     h, w = a.shape[:2]
     n = int(np.abs(taps).max()) if len(taps) else 0
-    ap = np.pad(a, ((n, n), (n, n), (0, 0)), mode="edge")
-    bp = np.pad(b, ((n, n), (n, n), (0, 0)), mode="edge")
+    ap, bp = pad_sides(a, n, edges), pad_sides(b, n, edges)
     out, vis = np.zeros((h, w, 4)), np.zeros((h, w))
     for d in taps:
         x0, y0 = n - int(d[0]), n - int(d[1])  # the source p − d
@@ -407,12 +573,16 @@ def resolve(over: np.ndarray, visible: np.ndarray) -> np.ndarray:
 
 
 def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer], lens: Lens,
-                 rule: SliceRule = SliceRule(), cell: LensCell | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 rule: SliceRule = SliceRule(), cell: LensCell | None = None,
+                 guard: int = 0, edges: list[Edges] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The depth-of-field image from the layers of ``plan`` as blended, front to back: per layer
     (colour (H, W, 4) premultiplied RGBA *in the blend space*, depth sums (H, W, 4) (Σw·z, Σw/z,
     0, Σw)), image orientation (rows downwards), blurred by the kernel of ``cell`` (default: the
-    whole disk). Returns the colour (H, W, 4) float64 in the blend space and the depth sums
-    (H, W, 4) float64 of the pinhole (the layers composited unblurred)."""
+    whole disk). The layers are blended over the frame and a guard band of ``guard`` pixels on
+    every side (:func:`guard_band`), which the result leaves out; the gather repeats each layer's
+    edges as ``edges`` (:func:`layer_edges`; default: every side) says. Returns the colour
+    (H − 2·guard, W − 2·guard, 4) float64 in the blend space and the depth sums alike of the
+    pinhole (the layers composited unblurred)."""
     cell = cell or Aperture().whole()
     h, w = layers[0][0].shape[:2]
     over, visible = np.zeros((h, w, 4)), np.zeros((h, w))
@@ -427,11 +597,11 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             visible += upsample(r_vis, s, h, w)
             run.clear()
 
-    for (colour, depth_sums), layer in zip(layers, plan):
+    for (colour, depth_sums), layer, sides in zip(layers, plan, edges or [(True,) * 4] * len(plan)):
         taps = cell.taps(layer.radius / layer.scale)
         a, b = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64), acc_depth,
                        lens, layer, rule, cell, taps)
-        blurred, vis = scatter(a, b, cell, taps)
+        blurred, vis = scatter(a, b, cell, taps, sides)
         if layer.scale == 1:
             end_run()
             over += (1.0 - over[..., 3:4]) * blurred
@@ -444,4 +614,5 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
         run[1] += (1.0 - run[1][..., 3:4]) * blurred
         run[2] += vis
     end_run()
-    return resolve(over, visible)[::-1], acc_depth[::-1]
+    inner = (slice(guard, h - guard), slice(guard, w - guard))
+    return resolve(over, visible)[::-1][inner], acc_depth[::-1][inner]

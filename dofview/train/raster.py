@@ -88,7 +88,6 @@ def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opac
     dev, dt = means.device, means.dtype
     R = torch.as_tensor(camera.R, dtype=dt, device=dev)
     T = torch.as_tensor(camera.T, dtype=dt, device=dev)
-    w, h = camera.width, camera.height
     fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
     t = means @ R.T + T
     with torch.no_grad():
@@ -96,8 +95,9 @@ def project(means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opac
         front = front[torch.argsort(t[front, 2], stable=True)]
     t = t.index_select(0, front)  # (index_select: on the CPU a faster gather and backward than t[front])
     iz = 1.0 / t[:, 2]
-    tx = torch.clamp(t[:, 0] * iz, (-cx - 0.15 * w) / fx, (w - cx + 0.15 * w) / fx)
-    ty = torch.clamp(t[:, 1] * iz, (-cy - 0.15 * h) / fy, (h - cy + 0.15 * h) / fy)
+    lo_x, lo_y, hi_x, hi_y = camera.frustum_limits()
+    tx = torch.clamp(t[:, 0] * iz, lo_x, hi_x)
+    ty = torch.clamp(t[:, 1] * iz, lo_y, hi_y)
     a = (fx * iz)[:, None] * (R[0][None] - tx[:, None] * R[2][None])
     c = (fy * iz)[:, None] * (R[1][None] - ty[:, None] * R[2][None])
     M = rotations(quats.index_select(0, front)) * scales.index_select(0, front)[:, None, :]  # Σ = M Mᵀ

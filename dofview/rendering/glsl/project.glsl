@@ -10,6 +10,7 @@ uniform vec3 u_eye;         // camera centre, world
 uniform vec2 u_focal;       // fx, fy (pixels)
 uniform vec2 u_principal;   // cx, cy (pixels)
 uniform vec2 u_viewport;    // width, height (pixels)
+uniform vec4 u_frustum;     // x/z, y/z limits of the EWA clamp (lo.xy, hi.xy): Camera.frustum_limits
 uniform float u_near;
 uniform float u_tau;
 uniform float u_aperture;   // A, px * scene unit
@@ -52,11 +53,10 @@ bool project_gaussian(uint g, out Footprint f) {
 
     // EWA: Sigma2 = J W Sigma W^T J^T with Sigma = M M^T, M = R(q) S, so Sigma2 = P P^T with the
     // 2x3 P = J W M. Keeping the factor makes det(Sigma2) = |p0 x p1|^2: no cancellation even for
-    // needle-like or vanishing Gaussians. t.xy/t.z is clamped to 1.3x the frustum.
+    // needle-like or vanishing Gaussians. t.xy/t.z is clamped to 1.3x the frame's frustum (the
+    // frame's, not a guard band's: a guarded image keeps every footprint).
     float iz = 1.0 / t.z;
-    vec2 lim_lo = (-u_principal - 0.15 * u_viewport) / u_focal;
-    vec2 lim_hi = (u_viewport - u_principal + 0.15 * u_viewport) / u_focal;
-    vec2 txy = clamp(t.xy * iz, lim_lo, lim_hi);
+    vec2 txy = clamp(t.xy * iz, u_frustum.xy, u_frustum.zw);
     vec3 a = u_focal.x * iz * (u_R0 - txy.x * u_R2);
     vec3 c = u_focal.y * iz * (u_R1 - txy.y * u_R2);
     mat3 M = rotation(load_quat(g));

@@ -1,8 +1,8 @@
 #version 430
 // Sliced depth of field, per layer (slices.scatter is the twin): every pixel of the prepared layer
 // spread over the kernel at its own signed CoC, as a gather: out(p) = Σ_taps a(p − d)·w(d, ρ(p − d))
-// (slice_kernel.glsl), a already divided by N(ρ). Sources beyond the frame repeat its edge (the
-// guard band). Blended front to back into the frame's or a run's accumulators (ONE_MINUS_DST_ALPHA,
+// (slice_kernel.glsl), a already divided by N(ρ). Sources beyond the image repeat its edge on the
+// sides u_edge names (the layer goes on beyond the guard band) and are empty elsewhere. Blended front to back into the frame's or a run's accumulators (ONE_MINUS_DST_ALPHA,
 // ONE): "over" for the colour, and the sum of the visible coverages in the second target, whose
 // alpha stays 0 so that the same blend adds.
 
@@ -10,6 +10,7 @@
 
 uniform sampler2D u_a;  // colour / N(ρ)
 uniform sampler2D u_b;  // (ρ, visible coverage / N(ρ))
+uniform bvec4 u_edge;   // repeat the edge beyond (left, bottom, right, top)
 
 layout(location = 0) out vec4 out_colour;
 layout(location = 1) out vec4 out_visible;
@@ -21,7 +22,10 @@ void main() {
     float visible = 0.0;
     for (int i = 0; i < u_taps; ++i) {
         vec2 d = tap(i);
-        ivec2 q = clamp(p - ivec2(d), ivec2(0), last);
+        ivec2 q = p - ivec2(d);
+        bvec4 beyond = bvec4(q.x < 0, q.y < 0, q.x > last.x, q.y > last.y);
+        if (any(bvec4(ivec4(beyond) * ivec4(not(u_edge))))) continue;
+        q = clamp(q, ivec2(0), last);
         vec2 b = texelFetch(u_b, q, 0).rg;
         float w = kernel_weight(d, b.x);
         if (w > 0.0) {

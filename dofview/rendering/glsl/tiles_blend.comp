@@ -7,7 +7,8 @@
 // u_resume the targets already hold the nearer part of the scene (a depth slice or an earlier
 // pass) and blending continues from them. Only the splats of ranks [u_window.x, u_window.y) of
 // the depth order are blended (a depth slice of the sliced mode; tile lists hold ranks, in order),
-// in the tiles from u_tile_origin on. GROUP (threads along a side) and PIX are #defined.
+// in the tiles from u_tile_origin on, and only the pixels of u_box (a depth slice's window: what
+// lies beyond stays as it was). GROUP (threads along a side) and PIX are #defined.
 layout(local_size_x = GROUP, local_size_y = GROUP) in;
 
 #include "lens.glsl"
@@ -20,7 +21,7 @@ layout(std430, binding = 3) readonly buffer Order { uint order[]; };
 layout(rgba32f, binding = 0) uniform image2D u_colour;
 layout(rgba32f, binding = 1) uniform image2D u_depth;
 uniform float u_tau;
-uniform ivec2 u_size;
+uniform ivec4 u_box;  // (x0, y0, x1, y1) pixels written, GL rows, ends exclusive
 uniform uint u_tiles_x;
 uniform bool u_resume;
 uniform uint u_skip;
@@ -54,7 +55,7 @@ void main() {
         T[k] = 1.0;
         wz[k] = 0.0;
         wiz[k] = 0.0;
-        bool inside = px[k].x < u_size.x && px[k].y < u_size.y;
+        bool inside = all(greaterThanEqual(px[k], u_box.xy)) && all(lessThan(px[k], u_box.zw));
         if (u_resume && inside) {
             vec4 c = imageLoad(u_colour, px[k]);
             vec4 d = imageLoad(u_depth, px[k]);
@@ -94,7 +95,7 @@ void main() {
         }
     }
     for (int k = 0; k < N; ++k) {
-        if (px[k].x < u_size.x && px[k].y < u_size.y) {
+        if (all(greaterThanEqual(px[k], u_box.xy)) && all(lessThan(px[k], u_box.zw))) {
             imageStore(u_colour, px[k], vec4(rgb[k], 1.0 - T[k]));
             imageStore(u_depth, px[k], vec4(wz[k], wiz[k], 0.0, 1.0 - T[k]));
         }
