@@ -48,6 +48,8 @@ from dofview.lens import Lens
 from dofview.rendering.depth_order import camera_depths
 from dofview.rendering.gl import compute_shader, float32_uniform, load_shader
 from dofview.rendering.slices import (
+    NORM_FINE,
+    NORM_SAMPLES,
     Aperture,
     Box,
     Layer,
@@ -108,7 +110,8 @@ class SlicedDof:
 
         def program(frag: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
             prog = ctx.program(vertex_shader=load_shader("fullscreen.vert"),
-                               fragment_shader=load_shader(frag, {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES}))
+                               fragment_shader=load_shader(frag, {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES,
+                                                                  "NORM_SAMPLES": NORM_SAMPLES, "NORM_FINE": repr(NORM_FINE)}))
             return prog, ctx.vertex_array(prog, [])
 
         self._visible = compute_shader(ctx, "slice_visible.comp")
@@ -123,6 +126,8 @@ class SlicedDof:
         """The guard band of the last draw, pixels beyond the frame on every side (slices.guard_band)."""
         self._key: tuple[int, int, int] | None = None  # size and the renderer's colour target
         self._levels: dict[int, _Level] = {}
+        self._norms = self._texture((NORM_SAMPLES, 4), 1)  # the kernel's N(ρ) tables (LensCell.norms)
+        self._norms_for: tuple[LensCell, float] | None = None  # (cell, range) they were made for
         self.layers: list[Layer] = []
         self._largest = renderer.scene.scales.max(axis=1)  # (N,) float32: screen_boxes, every draw
         """The layers of the last draw (Renderer.sliced_layers)."""
@@ -187,7 +192,6 @@ class SlicedDof:
         w, h = camera.width, camera.height
         rule = r.slice_rule or rule_for(settings.blades)
         cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-        self._set_cell(cell)
         order = r.front_to_back()
         self.layers = plan_layers(camera_depths(r.scene.means, camera)[order], lens, settings.near, rule,
                                   math.sqrt(cell.share), max(w, h))
@@ -196,6 +200,7 @@ class SlicedDof:
             # renderer's targets instead of through a layer target, gather and resolve at full size
             r._splat(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
             return
+        self._set_cell(cell, max((layer.radius / layer.scale for layer in self.layers if not layer.lensed), default=0.0))
         boxes = screen_boxes(r.scene, self._largest, order, camera, self.layers, settings.near)
         self.guard = guard_band(self.layers, boxes, w, h, rule)
         windows = layer_windows(self.layers, boxes, w, h, self.guard)
@@ -256,27 +261,33 @@ class SlicedDof:
         return max(box[0] - n, 0), max(box[1] - n, 0), min(box[2] + n, lw), min(box[3] + n, lh)
 
     def _write_taps(self, taps: np.ndarray) -> None:
-        """Set both programs' taps (slice_kernel.glsl: two offsets a vector)."""
+        """Set the gather's taps (slice_kernel.glsl: two offsets a vector)."""
         if len(taps) > MAX_TAPS:
             raise DofviewError(f"a kernel of {len(taps)} taps exceeds the sliced mode's {MAX_TAPS}")
         data = np.zeros((MAX_TAPS, 2), np.float32)
         data[:len(taps)] = taps
-        for prog, _ in (self._prepare, self._gather):
-            prog["u_tap"].write(data.tobytes())
-            prog["u_taps"].value = len(taps)
+        prog = self._gather[0]
+        prog["u_tap"].write(data.tobytes())
+        prog["u_taps"].value = len(taps)
 
-    def _set_cell(self, cell: LensCell) -> None:
-        """Set both programs' kernel (slice_kernel.glsl)."""
+    def _set_cell(self, cell: LensCell, radius: float) -> None:
+        """Set the gather's kernel (slice_kernel.glsl), and the tables of its N(ρ) that the prepare
+        reads (LensCell.norms) for |ρ| ≤ ``radius`` (level px: the largest blur of any layer at its
+        level), made again only when the cell changes or the radius passes a quarter octave."""
         point, planes = cell.gl()
         if len(planes) > MAX_PLANES:
             raise DofviewError(f"a lens cell of {len(planes)} edges exceeds the sliced mode's {MAX_PLANES}")
         data = np.zeros((MAX_PLANES, 4), np.float32)
         data[:len(planes), :3] = planes
-        for prog, _ in (self._prepare, self._gather):
-            prog["u_point"].value = tuple(float(v) for v in point)
-            prog["u_disk"].value = cell.disk
-            prog["u_planes"].value = len(planes)
-            prog["u_plane"].write(data.tobytes())
+        prog = self._gather[0]
+        prog["u_point"].value = tuple(float(v) for v in point)
+        prog["u_disk"].value = cell.disk
+        prog["u_planes"].value = len(planes)
+        prog["u_plane"].write(data.tobytes())
+        span = max(NORM_FINE, 2.0 ** (math.ceil(4.0 * math.log2(max(radius, NORM_FINE))) / 4.0))
+        if self._norms_for != (cell, span):
+            self._norms.write(np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes())
+            self._norms_for = (cell, span)
 
     def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule) -> Box:
         """The layer in the slice target, within ``box`` (GL pixels, whole blocks of the level),
@@ -308,10 +319,11 @@ class SlicedDof:
         level.dirty = region
         prog, vao = self._prepare
         self._pass(prog, vao, level.prepared,
-                   {"u_colour": 0, "u_depth": 1, "u_scale": s, "u_blur": not layer.lensed,
-                    "u_aperture": lens.aperture, "u_inv_focus": float32_uniform(lens.inv_focus),
-                    "u_shrink": 4.0 * rule.spread * (s * s - 1), "u_rmax": layer.radius / s},
-                   [colour, depth], region)
+                   {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
+                    "u_blur": not layer.lensed, "u_aperture": lens.aperture,
+                    "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
+                    "u_rmax": layer.radius / s},
+                   [colour, depth, self._norms], region)
         if s == 1:
             self._clear(self.slice_fbo, box)
         return region
@@ -384,3 +396,4 @@ class SlicedDof:
             prog.release()
         self._visible.release()
         self._linear.release()
+        self._norms.release()

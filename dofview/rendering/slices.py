@@ -349,6 +349,13 @@ def layer_windows(layers: list[Layer], boxes: list[Box], width: int, height: int
 
 
 # ---- the aperture ----------------------------------------------------------------------------------
+NORM_SAMPLES = 2048
+"""Samples per sign and range of the kernels' N(ρ) tables (LensCell.norms)."""
+NORM_FINE = 2.0
+"""|ρ| (level px) up to which slice_prepare.frag reads N(ρ) from a fine table: where N is small,
+its kinks (every tap's ramp starts and ends) weigh most against it."""
+
+
 @dataclass(frozen=True)
 class Aperture:
     """The aperture's shape: a disk (``blades`` = 0) or a regular polygon with ``blades`` ≥ 3
@@ -424,6 +431,17 @@ class LensCell:
         for nx, ny, h in planes:
             sd = np.maximum(sd, vx * nx + vy * ny - a * h)
         return np.clip(np.float32(0.5) - sd, 0.0, 1.0).astype(np.float32)
+
+    def norms(self, radius: float, samples: int = NORM_SAMPLES) -> np.ndarray:
+        """(2, samples) float32 the kernel's N(ρ) = Σ_taps w(d, ρ) at ρ = radius·i/(samples − 1),
+        i = 0 … samples − 1 (row 0: in front of focus) and at −ρ (row 1: behind it): the table that
+        slice_prepare.frag interpolates linearly instead of summing every tap per texel (one over
+        [0, :data:`NORM_FINE`], one over the frame's whole range; tests hold them within 1e-3 of
+        N)."""
+        taps = self.taps(radius)
+        rho = np.linspace(0.0, radius, samples, dtype=np.float32)
+        return np.stack([self.weights(taps, rho).sum(axis=0, dtype=np.float64),
+                         self.weights(taps, -rho).sum(axis=0, dtype=np.float64)]).astype(np.float32)
 
     def taps(self, radius: float) -> np.ndarray:
         """(T, 2) float32 the offsets (GL orientation) where the kernel of a source of |ρ| ≤

@@ -25,3 +25,4 @@ float kernel_weight(vec2 d, float rho) {
     for (int i = 0; i < u_planes; ++i) sd = max(sd, dot(v, u_plane[i].xy) - a * u_plane[i].z);
     return clamp(0.5 - sd, 0.0, 1.0);
 }
+
