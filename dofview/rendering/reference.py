@@ -29,18 +29,13 @@ from dofview.lens import (
     kernel_shape,
     normalise_opacity,
 )
-from dofview.rendering.depth_order import camera_depths
 from dofview.rendering.slices import (
     Aperture,
     LensCell,
     SliceRule,
     from_blend_space,
-    guard_band,
-    layer_edges,
-    layer_windows,
-    plan_layers,
+    plan_frame,
     rule_for,
-    screen_boxes,
     sliced_image,
 )
 from dofview.scene import SH_C0, GaussianScene
@@ -238,20 +233,16 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
     order = np.argsort(z, kind="stable")
     cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-    plan = plan_layers(camera_depths(scene.means, camera)[order], lens, settings.near, rule, math.sqrt(cell.share),
-                       max(camera.width, camera.height))  # as GL
+    frame = plan_frame(scene, scene.scales.max(axis=1), order, camera, lens, settings.near, rule,
+                       math.sqrt(cell.share))  # as the GL path plans it
     per_splat = replace(settings, dof="splat")
     encoded = scene.colour_space == "srgb" and not settings.blend_linear
-    if not plan:  # nothing in front of the near plane
+    if not frame.layers:  # nothing in front of the near plane
         return render_reference(scene, camera, lens, per_splat, tile)
-    # the guard band and the layers' windows as the GL path takes them (from the same boxes)
-    boxes = screen_boxes(scene, scene.scales.max(axis=1), order, camera, plan, settings.near)
-    guard = guard_band(plan, boxes, camera.width, camera.height, rule)
-    windows = layer_windows(plan, boxes, camera.width, camera.height, guard)
-    edges = layer_edges(boxes, camera.width, camera.height, guard)
+    plan, guard = frame.layers, frame.guard
     guarded = camera.guarded(guard)
     layers = []
-    for layer, (x0, y0, x1, y1) in zip(plan, windows):
+    for layer, (x0, y0, x1, y1) in zip(plan, frame.windows):
         sub = scene.subset(order[layer.first:layer.end])
         blend, sums, _ = _blend(sub, guarded, lens if layer.lensed else Lens(lens.focus, 0.0), per_splat, tile)
         outside = np.ones(blend.shape[:2], bool)
@@ -259,5 +250,5 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
         blend[outside] = 0.0
         sums[outside] = 0.0
         layers.append((blend, sums))
-    colour, sums = sliced_image(layers, plan, lens, rule, cell, guard, edges)
+    colour, sums = sliced_image(layers, plan, lens, rule, cell, guard, frame.edges)
     return _frame(colour, sums, encoded)

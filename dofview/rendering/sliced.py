@@ -45,7 +45,6 @@ from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.rendering.depth_order import camera_depths
 from dofview.rendering.gl import compute_shader, float32_uniform, load_shader
 from dofview.rendering.slices import (
     NORM_FINE,
@@ -55,12 +54,8 @@ from dofview.rendering.slices import (
     Layer,
     LensCell,
     SliceRule,
-    guard_band,
-    layer_edges,
-    layer_windows,
-    plan_layers,
+    plan_frame,
     rule_for,
-    screen_boxes,
 )
 
 MAX_TAPS = 256
@@ -192,19 +187,15 @@ class SlicedDof:
         w, h = camera.width, camera.height
         rule = r.slice_rule or rule_for(settings.blades)
         cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-        order = r.front_to_back()
-        self.layers = plan_layers(camera_depths(r.scene.means, camera)[order], lens, settings.near, rule,
-                                  math.sqrt(cell.share), max(w, h))
-        if len(self.layers) == 1 and not self.layers[0].lensed and self.layers[0].radius == 0.0:
+        plan = plan_frame(r.scene, self._largest, r.front_to_back(), camera, lens, settings.near, rule,
+                          math.sqrt(cell.share))
+        self.layers, self.guard = plan.layers, plan.guard
+        if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
             # renderer's targets instead of through a layer target, gather and resolve at full size
             r._splat(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
             return
         self._set_cell(cell, max((layer.radius / layer.scale for layer in self.layers if not layer.lensed), default=0.0))
-        boxes = screen_boxes(r.scene, self._largest, order, camera, self.layers, settings.near)
-        self.guard = guard_band(self.layers, boxes, w, h, rule)
-        windows = layer_windows(self.layers, boxes, w, h, self.guard)
-        edges = layer_edges(boxes, w, h, self.guard)
         camera = camera.guarded(self.guard)  # every pass below works in the guarded image
         w, h = camera.width, camera.height
         self._targets(w, h)
@@ -214,7 +205,7 @@ class SlicedDof:
         lensed = (lens, replace(settings, dof="splat"), False)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
-        for layer, box, sides in zip(self.layers, windows, edges):
+        for layer, box, sides in zip(plan.layers, plan.windows, plan.edges):
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
                 r._prepare(camera, *setup)

@@ -61,6 +61,7 @@ import numpy as np
 from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.lens import Lens
+from dofview.rendering.depth_order import camera_depths
 from dofview.tonemap import decode, encode
 
 
@@ -346,6 +347,44 @@ def layer_windows(layers: list[Layer], boxes: list[Box], width: int, height: int
         lo, hx, hy = guard - band, guard + width + band, guard + height + band
         out.append((max(x0 + guard, lo), max(y0 + guard, lo), min(x1 + guard, hx), min(y1 + guard, hy)))
     return out
+
+
+@dataclass(frozen=True)
+class FramePlan:
+    """What the sliced mode draws of one frame, the GL path and the CPU twin alike.
+
+    Attributes:
+        layers: the layers, front to back (:func:`plan_layers`).
+        guard: pixels of guard band on every side of the frame (:func:`guard_band`).
+        windows: per layer the pixels of the guarded image where it is blended (:func:`layer_windows`).
+        edges: per layer the sides beyond which its gather repeats the edge (:func:`layer_edges`).
+    """
+
+    layers: list[Layer]
+    guard: int
+    windows: list[Box]
+    edges: list[Edges]
+
+    @property
+    def pinhole(self) -> bool:
+        """One unblurred layer (A = 0): the frame is the pinhole's."""
+        return len(self.layers) == 1 and not self.layers[0].lensed and self.layers[0].radius == 0.0
+
+
+def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, lens: Lens, near: float,
+               rule: SliceRule, size: float = 1.0) -> FramePlan:
+    """The sliced mode's plan of a frame of ``scene`` seen by ``camera`` in the draw order ``order``
+    (N,) (nearest first), ``largest`` (N,) float32 each Gaussian's largest scale, for a kernel of
+    ``size`` (plan_layers). A pinhole frame (:attr:`FramePlan.pinhole`) gets no boxes: it is drawn
+    whole."""
+    w, h = camera.width, camera.height
+    layers = plan_layers(camera_depths(scene.means, camera)[order], lens, near, rule, size, max(w, h))
+    whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers))
+    if not layers or whole.pinhole:
+        return whole
+    boxes = screen_boxes(scene, largest, order, camera, layers, near)
+    guard = guard_band(layers, boxes, w, h, rule)
+    return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard))
 
 
 # ---- the aperture ----------------------------------------------------------------------------------
