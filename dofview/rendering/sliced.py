@@ -65,6 +65,10 @@ MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
 
 
+def _intersect(a: Box, b: Box) -> Box:
+    return max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
+
+
 def _union(a: Box | None, b: Box) -> Box:
     return b if a is None else (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
 
@@ -199,7 +203,10 @@ class SlicedDof:
         camera = camera.guarded(self.guard)  # every pass below works in the guarded image
         w, h = camera.width, camera.height
         self._targets(w, h)
-        self.frame_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        # the frame inside the guarded image (GL pixels): only there are the blurred layers
+        # composited; the band is a source of light for the gathers, not a part of the image
+        frame = (self.guard, self.guard, w - self.guard, h - self.guard)
+        self._clear(self.frame_fbo, frame)
         self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
         lensed = (lens, replace(settings, dof="splat"), False)
@@ -222,7 +229,7 @@ class SlicedDof:
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
-            out = self._grow(blocks, reach, level)
+            out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             self._gather[0]["u_edge"].value = sides
             if level.run is None:
                 self._gather_layer(level, self.frame_fbo, out)
@@ -232,8 +239,8 @@ class SlicedDof:
                     run.extend([level, None])
                 self._gather_layer(level, level.run, out)
                 # the run's reach at full resolution, a block more for the bilinear upsampling
-                run[1] = _union(run[1], (max((out[0] - 1) * s, 0), max((out[1] - 1) * s, 0),
-                                         min((out[2] + 1) * s, w), min((out[3] + 1) * s, h)))
+                run[1] = _union(run[1], _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s,
+                                                     (out[3] + 1) * s), frame))
         if run:
             self._end_run(run)
         prog, vao = self._resolve
