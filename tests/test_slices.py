@@ -290,19 +290,21 @@ def _layer(radius: float, scale: int = 1) -> slices.Layer:
 
 
 def test_guard_band_covers_what_the_blurs_reach_beyond_the_frame_in_doubling_steps():
-    rule, w, h = SLICE_RULE, 240, 180
-    inside = (10, 10, 200, 150)
+    rule, w, h = SLICE_RULE, 640, 360
+    inside = (10, 10, 600, 350)
     assert slices.guard_band([_layer(50.0, 16)], [inside], w, h, rule) == 0  # nothing beyond the frame
     # a focus layer overhangs everywhere, but repeating the edge serves a blur of 2 px
-    assert slices.guard_band([_layer(0.5)], [(-40, -40, 280, 220)], w, h, rule) == 0
-    # a blurred layer 20 px beyond the left side: the smallest band; 40 px: the next
-    assert slices.guard_band([_layer(50.0, 16)], [(-20, 10, 200, 150)], w, h, rule) == slices.GUARD_STEP
-    assert slices.guard_band([_layer(50.0, 16)], [(10, 10, 200, 220)], w, h, rule) == 2 * slices.GUARD_STEP
+    assert slices.guard_band([_layer(0.5)], [(-40, -40, 680, 400)], w, h, rule) == 0
+    # a blurred layer 20 px beyond the left side: the smallest band; 40 px below: the next
+    assert slices.guard_band([_layer(50.0, 16)], [(-20, 10, 600, 350)], w, h, rule) == slices.GUARD_STEP
+    assert slices.guard_band([_layer(50.0, 16)], [(10, 10, 600, 400)], w, h, rule) == 2 * slices.GUARD_STEP
     # no more than the layer's reach, however far its Gaussians go
-    assert slices.guard_band([_layer(10.0, 2)], [(-500, 10, 200, 150)], w, h, rule) == slices.GUARD_STEP
-    # at most SliceRule.guard of the larger side (rounded up to a step): 0.25 · 240 → 64
-    assert slices.guard_band([_layer(300.0, 64)], [(-500, 10, 200, 150)], w, h, rule) == 64
-    assert slices.guard_band([_layer(300.0, 64)], [(-500, 10, 200, 150)], w, h, replace(rule, guard=0.0)) == 0
+    assert slices.guard_band([_layer(10.0, 2)], [(-500, 10, 600, 350)], w, h, rule) == slices.GUARD_STEP
+    # at most SliceRule.guard of the larger side, rounded up to a step: 0.125 · 640 → 96
+    far = [(-500, 10, 600, 350)]
+    assert slices.guard_band([_layer(300.0, 64)], far, w, h, rule) == 96
+    assert slices.guard_band([_layer(300.0, 64)], far, w, h, replace(rule, guard=0.5)) == 320
+    assert slices.guard_band([_layer(300.0, 64)], far, w, h, replace(rule, guard=0.0)) == 0
 
 
 def test_layer_windows_and_edges_follow_each_layers_reach_and_overhang():

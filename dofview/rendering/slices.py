@@ -21,7 +21,7 @@ The guard band: a layer blurred by c px takes light from up to c px beyond the f
 layer's Gaussians reach beyond the frame (:func:`screen_boxes`, not clipped), the layers are
 blended into an image extended on every side (Camera.guarded: the frustum clamp stays the
 frame's, so every footprint is the pinhole's) by what their blurs need (:func:`guard_band`: in
-steps doubling from 32 px, at most a quarter of the frame's larger side), each layer within its
+steps doubling from 32 px, at most an eighth of the frame's larger side), each layer within its
 own reach of the frame (:func:`layer_windows`). Beyond what was rendered the gather repeats the
 edge only on the sides where the layer goes on (:func:`layer_edges`: a wall stays opaque to the
 border) and reads nothing elsewhere: repeating a coarse level's edge texel, which averages a
@@ -96,7 +96,7 @@ class SliceRule:
     huge: float = math.inf
     limit: float = 3.0
     spread: float = 1.0 / 6.0
-    guard: float = 0.25
+    guard: float = 0.125
     wide: float = 0.125
     wide_growth: float = 3.0
     snap: float = 0.3
