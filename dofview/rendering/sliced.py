@@ -87,10 +87,11 @@ class _Level:
     depth: moderngl.Texture | None
     reduced: moderngl.Framebuffer | None
     run: moderngl.Framebuffer | None
+    occupied: moderngl.Texture  # per 8 × 8 tile of the level: light within the gather's reach
     dirty: Box | None = None  # what the last prepare wrote (level pixels)
 
     def textures(self) -> list[moderngl.Texture]:
-        own = [self.a, self.b] + ([self.colour, self.depth] if self.colour is not None else [])
+        own = [self.a, self.b, self.occupied] + ([self.colour, self.depth] if self.colour is not None else [])
         return own + list(self.run.color_attachments if self.run is not None else ())
 
     def release(self) -> None:
@@ -114,6 +115,7 @@ class SlicedDof:
             return prog, ctx.vertex_array(prog, [])
 
         self._visible = compute_shader(ctx, "slice_visible.comp")
+        self._occupancy = compute_shader(ctx, "slice_occupancy.comp")
         self._reduce = program("slice_reduce.frag")
         self._linear = ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
         self._prepare = program("slice_prepare.frag")
@@ -168,7 +170,8 @@ class SlicedDof:
                 run = self.ctx.framebuffer(color_attachments=[self._texture(size), self._texture(size)])
             prepared = self.ctx.framebuffer(color_attachments=[a, b])
             prepared.clear(0.0, 0.0, 0.0, 0.0)
-            self._levels[scale] = _Level(scale, a, b, prepared, colour, depth, reduced, run)
+            occupied = self._texture((-(-size[0] // 8), -(-size[1] // 8)), 1)
+            self._levels[scale] = _Level(scale, a, b, prepared, colour, depth, reduced, run, occupied)
         return self._levels[scale]
 
     @property
@@ -232,12 +235,12 @@ class SlicedDof:
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             self._gather[0]["u_edge"].value = sides
             if level.run is None:
-                self._gather_layer(level, self.frame_fbo, out)
+                self._gather_layer(level, self.frame_fbo, out, reach)
             else:
                 if not run:
                     level.run.clear(0.0, 0.0, 0.0, 0.0)
                     run.extend([level, None])
-                self._gather_layer(level, level.run, out)
+                self._gather_layer(level, level.run, out, reach)
                 # the run's reach at full resolution, a block more for the bilinear upsampling
                 run[1] = _union(run[1], _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s,
                                                      (out[3] + 1) * s), frame))
@@ -334,10 +337,23 @@ class SlicedDof:
         shader.run(-(-(box[2] - box[0]) // 8), -(-(box[3] - box[1]) // 8))
         self.ctx.memory_barrier()
 
-    def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box) -> None:
-        """slice_gather.frag over ``out`` (level pixels), blended behind what ``target`` holds."""
+    def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int) -> None:
+        """slice_gather.frag over ``out`` (level pixels), blended behind what ``target`` holds,
+        after slice_occupancy.comp has marked its tiles that light within ``reach`` texels reaches."""
+        if out[2] <= out[0] or out[3] <= out[1]:
+            return
+        occ = self._occupancy
+        tiles = (out[0] // 8, out[1] // 8, -(-out[2] // 8), -(-out[3] // 8))
+        level.occupied.bind_to_image(0, read=False, write=True)
+        level.a.use(0)
+        occ["u_a"].value = 0
+        occ["u_tiles"].value = tiles
+        occ["u_reach"].value = reach
+        occ.run(-(-(tiles[2] - tiles[0]) // 8), -(-(tiles[3] - tiles[1]) // 8))
+        self.ctx.memory_barrier()
         prog, vao = self._gather
-        self._pass(prog, vao, target, {"u_a": 0, "u_b": 1}, [level.a, level.b], out, blend=True)
+        self._pass(prog, vao, target, {"u_a": 0, "u_b": 1, "u_occupied": 2}, [level.a, level.b, level.occupied], out,
+                   blend=True)
 
     def _end_run(self, run: list) -> None:
         """Upsample the run's accumulators into the frame's, behind what they hold."""
@@ -393,5 +409,6 @@ class SlicedDof:
             vao.release()
             prog.release()
         self._visible.release()
+        self._occupancy.release()
         self._linear.release()
         self._norms.release()

@@ -11,12 +11,14 @@
 uniform sampler2D u_a;  // colour / N(ρ)
 uniform sampler2D u_b;  // (ρ, visible coverage / N(ρ))
 uniform bvec4 u_edge;   // repeat the edge beyond (left, bottom, right, top)
+uniform sampler2D u_occupied;  // per 8 × 8 tile: any light within reach (slice_occupancy.comp)
 
 layout(location = 0) out vec4 out_colour;
 layout(location = 1) out vec4 out_visible;
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
+    if (texelFetch(u_occupied, p >> 3, 0).r == 0.0) discard;  // nothing of the layer reaches here
     ivec2 last = textureSize(u_a, 0) - 1;
     vec4 sum = vec4(0.0);
     float visible = 0.0;
