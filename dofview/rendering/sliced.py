@@ -29,8 +29,9 @@ processed. GPU memory (:attr:`SlicedDof.gpu_bytes`), per pixel of the guarded im
 resolution the slice colour and depth sums, the two accumulators, the depth accumulator and the
 prepared layer (RGBA32F ×6 and RG32F: 104 B), and per reduced level s the layer averaged down,
 prepared, and a run's accumulators (88/s² B): ≤ 134 B in all besides the renderer's own targets
-(≈ 134 MB per megapixel of frame without a band; the widest band, an eighth of a 16:9 frame's
-width on every side, makes the image 1.8× the frame's pixels: ≤ 240 MB per megapixel of frame).
+(≈ 134 MB per megapixel of frame without a band; the widest band, an eighth of the frame's larger
+side on every side rounded up to 32 px, makes the image about 2× the frame's pixels: 266 MB per
+megapixel of frame measured at 640×360).
 """
 
 from __future__ import annotations
