@@ -216,7 +216,7 @@ class SlicedDof:
         lensed = (lens, replace(settings, dof="splat"), False)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
-        for layer, box, sides in zip(plan.layers, plan.windows, plan.edges):
+        for layer, box, sides, veil in zip(plan.layers, plan.windows, plan.edges, plan.veils):
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
                 r._prepare(camera, *setup)
@@ -232,6 +232,7 @@ class SlicedDof:
             taps = cell.taps(layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
+            self._visible["u_veil"].value = veil
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             self._gather[0]["u_edge"].value = sides

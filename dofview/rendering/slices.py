@@ -358,12 +358,14 @@ class FramePlan:
         guard: pixels of guard band on every side of the frame (:func:`guard_band`).
         windows: per layer the pixels of the guarded image where it is blended (:func:`layer_windows`).
         edges: per layer the sides beyond which its gather repeats the edge (:func:`layer_edges`).
+        veils: per layer, blurred beyond SliceRule.wide of the frame (:func:`prepare`).
     """
 
     layers: list[Layer]
     guard: int
     windows: list[Box]
     edges: list[Edges]
+    veils: list[bool]
 
     @property
     def pinhole(self) -> bool:
@@ -379,12 +381,13 @@ def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, le
     whole."""
     w, h = camera.width, camera.height
     layers = plan_layers(camera_depths(scene.means, camera)[order], lens, near, rule, size, max(w, h))
-    whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers))
+    whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers), [False] * len(layers))
     if not layers or whole.pinhole:
         return whole
     boxes = screen_boxes(scene, largest, order, camera, layers, near)
     guard = guard_band(layers, boxes, w, h, rule)
-    return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard))
+    veils = [not layer.lensed and layer.radius > rule.wide * max(w, h) for layer in layers]
+    return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard), veils)
 
 
 # ---- the aperture ----------------------------------------------------------------------------------
@@ -529,22 +532,29 @@ def from_blend_space(rgba: np.ndarray, encoded: bool) -> np.ndarray:
 
 
 def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, lens: Lens, layer: Layer,
-            rule: SliceRule, cell: LensCell, taps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            rule: SliceRule, cell: LensCell, taps: np.ndarray, veil: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """One layer made ready for its gather at its level 1/s (slice_visible.comp, slice_reduce.frag,
     slice_prepare.frag).
 
     ``colour`` (H, W, 4) its blend-space premultiplied RGBA, ``depth_sums`` (H, W, 4) its
     (Σw·z, Σw/z, 0, Σw); ``acc_depth`` (H, W, 4) float64 the depth sums of the layers in front,
     to which this layer's are added under their transmittance T (in place): the pinhole's depth.
-    The layer's visible coverage T·α rides along with its depth sums through the 2 × 2 averages
-    (:func:`reduce2`) down to the level. Returns ``a`` (h, w, 4) the level's colour over N(ρ) =
+    The layer's visible coverage V·α rides along with its depth sums through the 2 × 2 averages
+    (:func:`reduce2`) down to the level, V the transmittance of the layers in front that are not
+    veils, kept in the accumulator's third component: a ``veil`` (a layer blurred beyond
+    :attr:`SliceRule.wide` of the frame, :attr:`FramePlan.veils`) spreads too far to hide anything
+    behind it from the lens, and taking visibility from what it hid in the pinhole left the
+    resolve's fill of the cuts behind it half done (docs/BENCHMARKS.md, "Indoors"). Returns ``a`` (h, w, 4) the level's colour over N(ρ) =
     Σ_taps w(d, ρ) of each texel's signed CoC ρ (level px, shrunk: see the module docstring) and
     ``b`` (h, w, 2) (ρ, visible coverage / N(ρ))."""
     trans = 1.0 - acc_depth[..., 3]
-    acc_depth += trans[..., None] * depth_sums
     col = np.asarray(colour, np.float64)
+    visible = (1.0 - acc_depth[..., 2]) * col[..., 3]
+    acc_depth += trans[..., None] * depth_sums
+    if not veil:
+        acc_depth[..., 2] += visible
     dep = np.array(depth_sums, np.float64)
-    dep[..., 2] = trans * col[..., 3]
+    dep[..., 2] = visible
     s = layer.scale
     for _ in range(s.bit_length() - 1):
         col, dep = reduce2(col), reduce2(dep)
@@ -631,13 +641,15 @@ def resolve(over: np.ndarray, visible: np.ndarray) -> np.ndarray:
 
 def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer], lens: Lens,
                  rule: SliceRule = SliceRule(), cell: LensCell | None = None,
-                 guard: int = 0, edges: list[Edges] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 guard: int = 0, edges: list[Edges] | None = None,
+                 veils: list[bool] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The depth-of-field image from the layers of ``plan`` as blended, front to back: per layer
     (colour (H, W, 4) premultiplied RGBA *in the blend space*, depth sums (H, W, 4) (Σw·z, Σw/z,
     0, Σw)), image orientation (rows downwards), blurred by the kernel of ``cell`` (default: the
     whole disk). The layers are blended over the frame and a guard band of ``guard`` pixels on
     every side (:func:`guard_band`), which the result leaves out; the gather repeats each layer's
-    edges as ``edges`` (:func:`layer_edges`; default: every side) says. Returns the colour
+    edges as ``edges`` (:func:`layer_edges`; default: every side) says, and ``veils``
+    (:func:`prepare`; default: none) hide nothing from the visible parts behind them. Returns the colour
     (H − 2·guard, W − 2·guard, 4) float64 in the blend space and the depth sums alike of the
     pinhole (the layers composited unblurred)."""
     cell = cell or Aperture().whole()
@@ -654,10 +666,11 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             visible += upsample(r_vis, s, h, w)
             run.clear()
 
-    for (colour, depth_sums), layer, sides in zip(layers, plan, edges or [(True,) * 4] * len(plan)):
+    for (colour, depth_sums), layer, sides, veil in zip(layers, plan, edges or [(True,) * 4] * len(plan),
+                                                        veils or [False] * len(plan)):
         taps = cell.taps(layer.radius / layer.scale)
         a, b = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64), acc_depth,
-                       lens, layer, rule, cell, taps)
+                       lens, layer, rule, cell, taps, veil)
         blurred, vis = scatter(a, b, cell, taps, sides)
         if layer.scale == 1:
             end_run()

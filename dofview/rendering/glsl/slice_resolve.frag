@@ -21,5 +21,6 @@ void main() {
     vec4 o = texelFetch(u_over, p, 0);
     float target = min(max(o.a, texelFetch(u_visible, p, 0).r), 1.0);
     out_colour = o.a > 0.0 ? o * (target / o.a) : o;
-    out_depth = texelFetch(u_depth, p, 0);
+    vec4 depth = texelFetch(u_depth, p, 0);
+    out_depth = vec4(depth.xy, 0.0, depth.w);  // (the third component held the layers' visibility)
 }
