@@ -38,7 +38,8 @@ Seams: where a surface is cut between two layers, their blurred parts are comple
 (each layer's coverage under the pinhole transmittance in front of it) keeps a surface whole but
 cannot show what a blurred foreground edge hid; the resolve (:func:`resolve`) scales the "over"
 composite up to that sum's coverage (capped at 1) where it falls short, so cuts close and hidden
-surfaces still show.
+surfaces still show. Layers blurred beyond SliceRule.wide of the frame (veils: floaters at the
+lens) take no visibility from what lies behind them: through the lens they hide nothing there.
 
 Near-camera Gaussians indoors, blurred by hundreds of pixels, are sliced like the rest (at levels
 down to a few texels, their light kept): a wall a hand's breadth from the lens stays an opaque blur.
