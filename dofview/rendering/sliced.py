@@ -52,6 +52,7 @@ from dofview.rendering.slices import (
     NORM_SAMPLES,
     Aperture,
     Box,
+    Edges,
     Layer,
     LensCell,
     SliceRule,
@@ -130,8 +131,8 @@ class SlicedDof:
         self._levels: dict[int, _Level] = {}
         self._norms = self._texture((NORM_SAMPLES, 4), 1)  # the kernel's N(ρ) tables (LensCell.norms)
         self._norms_for: tuple[LensCell, float] | None = None  # (cell, range) they were made for
-        self.layers: list[Layer] = []
         self._largest = renderer.scene.scales.max(axis=1)  # (N,) float32: screen_boxes, every draw
+        self.layers: list[Layer] = []
         """The layers of the last draw (Renderer.sliced_layers)."""
 
     # ---- targets -------------------------------------------------------------------------------
@@ -192,7 +193,6 @@ class SlicedDof:
         """The sliced image of the renderer's scene in its current order into its targets, blurred
         by the kernel of ``cell`` (None: the whole aperture of ``settings``)."""
         r = self.r
-        w, h = camera.width, camera.height
         rule = r.slice_rule or rule_for(settings.blades)
         cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
         plan = plan_frame(r.scene, self._largest, r.front_to_back(), camera, lens, settings.near, rule,
@@ -232,17 +232,15 @@ class SlicedDof:
             taps = cell.taps(layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
-            self._visible["u_veil"].value = veil
-            blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
+            blocks = self._prepare_layer(level, gl_box, layer, lens, rule, veil)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
-            self._gather[0]["u_edge"].value = sides
             if level.run is None:
-                self._gather_layer(level, self.frame_fbo, out, reach)
+                self._gather_layer(level, self.frame_fbo, out, reach, sides)
             else:
                 if not run:
                     level.run.clear(0.0, 0.0, 0.0, 0.0)
                     run.extend([level, None])
-                self._gather_layer(level, level.run, out, reach)
+                self._gather_layer(level, level.run, out, reach, sides)
                 # the run's reach at full resolution, a block more for the bilinear upsampling
                 run[1] = _union(run[1], _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s,
                                                      (out[3] + 1) * s), frame))
@@ -292,9 +290,10 @@ class SlicedDof:
             self._norms.write(np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes())
             self._norms_for = (cell, span)
 
-    def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule) -> Box:
+    def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule, veil: bool) -> Box:
         """The layer in the slice target, within ``box`` (GL pixels, whole blocks of the level),
-        made ready for its gather at ``level`` (slices.prepare): slice_visible.comp, then
+        made ready for its gather at ``level`` (slices.prepare; ``veil``: it hides nothing from the
+        visible parts behind it): slice_visible.comp, then
         slice_reduce.frag down to the level and slice_prepare.frag, after clearing what the last
         layer prepared there wrote (the gather reads around its blocks, where the level must be
         empty); the slice target is cleared in ``box`` once read. Returns the level's blocks."""
@@ -302,6 +301,7 @@ class SlicedDof:
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
+        self._visible["u_veil"].value = veil
         self._run(self._visible, box)
         colour, depth, region = self.slice_colour, self.slice_depth, box
         prog, vao = self._reduce
@@ -339,9 +339,10 @@ class SlicedDof:
         shader.run(-(-(box[2] - box[0]) // 8), -(-(box[3] - box[1]) // 8))
         self.ctx.memory_barrier()
 
-    def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int) -> None:
+    def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int, edges: Edges) -> None:
         """slice_gather.frag over ``out`` (level pixels), blended behind what ``target`` holds,
-        after slice_occupancy.comp has marked its tiles that light within ``reach`` texels reaches."""
+        repeating the level's edge beyond the sides ``edges`` names, after slice_occupancy.comp has
+        marked its tiles that light within ``reach`` texels reaches."""
         if out[2] <= out[0] or out[3] <= out[1]:
             return
         occ = self._occupancy
@@ -354,6 +355,7 @@ class SlicedDof:
         occ.run(-(-(tiles[2] - tiles[0]) // 8), -(-(tiles[3] - tiles[1]) // 8))
         self.ctx.memory_barrier()
         prog, vao = self._gather
+        prog["u_edge"].value = edges
         self._pass(prog, vao, target, {"u_a": 0, "u_b": 1, "u_occupied": 2}, [level.a, level.b, level.occupied], out,
                    blend=True)
 
