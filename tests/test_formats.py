@@ -15,6 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import plyfile
 import pytest
 from conftest import random_scene
 from inria_folder import SCENES as DATA
@@ -33,7 +34,7 @@ from dofview.cli import main
 from dofview.errors import DofviewError, DofviewWarning, SceneFormatError
 from dofview.io import load_scene, save_scene
 from dofview.io.compressed_ply import read_compressed_ply
-from dofview.io.ply import write_ply
+from dofview.io.ply import scene_rows, write_ply
 from dofview.io.sog import read_sog
 from dofview.io.spz import (
     SH_PARITY,
@@ -117,6 +118,52 @@ def test_guitar_compressed_ply_also_under_a_plain_ply_name(tmp_path):
     again = load_scene(renamed, progress=False)  # the .ply reader sees the chunk element
     for a in ("means", "quats", "scales", "opacities", "sh_dc"):
         np.testing.assert_array_equal(getattr(again, a), getattr(scene, a))
+
+
+def test_ply_converted_by_splat_transform_keeps_its_fully_opaque_gaussians(tmp_path):
+    """splat-transform (the field's converter) decompresses an 8-bit opacity of 255 to the logit
+    +inf (sigmoid(+inf) = 1): 667 of guitar's 90,854 Gaussians. They are fully opaque Gaussians, not
+    damage: the .ply reads as its compressed source does, every Gaussian and no warning (float32
+    round trip of the logit and the log-scale: 1e-6)."""
+    splat_transform() or pytest.fail("splat-transform is not installed: run scripts/setup.sh")
+    source = DATA / "guitar.compressed.ply"
+    converted = convert(source, tmp_path / "guitar.ply")
+    logits = np.asarray(plyfile.PlyData.read(str(converted))["vertex"]["opacity"])
+    assert np.isposinf(logits).sum() == 667 and not np.isnan(logits).any()
+    ref = load_scene(source, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DofviewWarning)
+        scene = load_scene(converted, progress=False)
+    assert scene.count == ref.count == 90_854
+    np.testing.assert_array_equal(scene.opacities[np.isposinf(logits)], 1.0)
+    np.testing.assert_array_equal(scene.means, ref.means)
+    np.testing.assert_array_equal(scene.sh_dc, ref.sh_dc)
+    np.testing.assert_allclose(scene.opacities, ref.opacities, atol=1e-6)
+    np.testing.assert_allclose(scene.scales, ref.scales, rtol=1e-5)
+    np.testing.assert_allclose(np.abs(np.sum(scene.quats * ref.quats, axis=1)), 1.0, atol=1e-6)
+
+
+def test_infinite_opacity_logits_are_the_limits_and_only_damage_is_dropped(tmp_path):
+    """An opacity logit of +inf is opacity 1 and −inf opacity 0 (kept); a NaN logit, or an infinite
+    position or scale, has no limit that means anything and is dropped with the one warning."""
+    scene = random_scene(n=40, degree=1, seed=9)
+    rows = scene_rows(scene)
+    rows["opacity"][[3, 4]] = np.inf
+    rows["opacity"][7] = -np.inf
+    rows["opacity"][11] = np.nan
+    rows["x"][12] = np.inf
+    rows["scale_1"][13] = -np.inf
+    path = tmp_path / "limits.ply"
+    path.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 40\n"
+                     + b"".join(f"property float {n}\n".encode() for n in rows.dtype.names)
+                     + b"end_header\n" + rows.tobytes())
+    with pytest.warns(DofviewWarning, match="dropped 3 of 40 Gaussians with NaN or infinite values"):
+        loaded = load_scene(path, progress=False)
+    keep = np.setdiff1d(np.arange(40), [11, 12, 13])
+    assert loaded.count == 37
+    opacity = dict(zip(keep.tolist(), loaded.opacities.tolist()))
+    assert opacity[3] == opacity[4] == 1.0 and opacity[7] == 0.0
+    np.testing.assert_array_equal(loaded.means, scene.means[keep])
 
 
 # ---- files made by splat-transform from the samples -----------------------------------------------

@@ -95,9 +95,11 @@ def read_ply(path: str | Path, progress: Callable[[int, int], None] | None = Non
     """Read a 3DGS ``.ply`` into an activated :class:`GaussianScene` (float32 arrays).
 
     Opacity goes through a sigmoid, scales through exp (both clamped so that no value overflows),
-    quaternions are normalised (a zero one becomes the identity). Gaussians with a NaN or infinite
-    value in any property are dropped with one :class:`DofviewWarning` that counts them (all of them:
-    a DofviewError).
+    quaternions are normalised (a zero one becomes the identity). An opacity logit of +inf is a
+    fully opaque Gaussian and −inf a fully transparent one (splat-transform writes the logit of an
+    8-bit opacity of 255 as +inf); Gaussians with a NaN in any property, or an infinite position,
+    colour, scale or rotation, are dropped with one :class:`DofviewWarning` that counts them (all
+    of them: a DofviewError).
     ``progress(done, total)`` is called as Gaussians are activated.
 
     Raises:
@@ -153,7 +155,7 @@ def _activate(path: Path, rows: np.ndarray, colour_space: str,
                 for j in range(k1):
                     rest[s:e, j, c] = r[f"f_rest_{c * k1 + j}"]
         ok = (np.isfinite(means[s:e]).all(1) & np.isfinite(sh_dc[s:e]).all(1) & np.isfinite(scales[s:e]).all(1)
-              & np.isfinite(quats[s:e]).all(1) & np.isfinite(logits[s:e]))
+              & np.isfinite(quats[s:e]).all(1) & ~np.isnan(logits[s:e]))  # ±inf: sigmoid's limits 1 and 0
         if rest is not None:
             ok &= np.isfinite(rest[s:e]).all((1, 2))
         finite[s:e] = ok
@@ -163,6 +165,7 @@ def _activate(path: Path, rows: np.ndarray, colour_space: str,
             progress(e, n)
     np.exp(np.clip(scales, -LOG_SCALE_LIMIT, LOG_SCALE_LIMIT, out=scales), out=scales)
     opacities = (1.0 / (1.0 + np.exp(-np.clip(logits, -LOG_SCALE_LIMIT, LOG_SCALE_LIMIT)))).astype(np.float32)
+    opacities[np.isneginf(logits)] = 0.0  # exactly transparent (the clip alone leaves 1.6e-38)
     norm = np.linalg.norm(quats.astype(np.float64), axis=1)
     good_q = norm > 1e-30
     quats[good_q] = (quats[good_q] / norm[good_q, None]).astype(np.float32)
