@@ -158,9 +158,10 @@ def add_lens_args(p: argparse.ArgumentParser, focus_pull: bool = False) -> None:
                         f"view's own width, else {REFERENCE_WIDTH} px (--eye/--target, automatic framing); at "
                         "another --width A scales with it, so the picture is the same, scaled")
     g.add_argument("--blur", type=blur_value, metavar="R[%][@DEPTH]",
-                   help="depth of field by the blur it makes: the largest blur in view (2nd–98th percentile depths "
-                        "of a pinhole pass) has radius R px at the reference width, or R%% of the image width; "
-                        "R@DEPTH gives that blur to camera depth DEPTH (e.g. 6@inf: the far background)")
+                   help="depth of field by the blur it makes: the largest blur on what the picture shows (2nd–98th "
+                        "percentile depths of the pixels of a pinhole pass with fine detail at one depth) has radius "
+                        "R px at the reference width, or R%% of the image width; R ≤ 25%% of the width; R@DEPTH "
+                        "gives that blur to camera depth DEPTH (e.g. 6@inf: the far background)")
     g.add_argument("--fnumber", type=number(0, None, lo_open=True, what="f-number"), help="physical lens: f-number N (with --focal-mm)")
     g.add_argument("--focal-mm", type=number(0, None, lo_open=True, what="focal length"), help="physical lens: focal length in mm")
     g.add_argument("--sensor-mm", type=number(0, None, lo_open=True, what="sensor width"), default=36.0, help="physical lens: sensor width in mm (default 36)")

@@ -22,7 +22,8 @@ from dofview.io.exr import read_exr
 from dofview.lens import Lens
 from dofview.options import render_command_line
 from dofview.rendering import get_backend
-from dofview.rendering.focus import depth_range
+from dofview.frame import Frame
+from dofview.rendering.focus import blur_span, depth_range
 
 W = 160  # and 2W = 320: small, llvmpipe on two cores
 
@@ -119,14 +120,64 @@ def test_a_cameras_json_view_at_its_own_width_gives_todays_image(tmp_path, burge
 @pytest.mark.parametrize("blur,radius_at_w", [("3", 3 * W / REFERENCE_WIDTH), ("2.5%", 0.025 * W)])
 def test_blur_gives_the_largest_blur_in_view(tmp_path, burger_view, renderer, blur, radius_at_w):
     """--blur R: the strength resolved makes the largest blur over the 2nd–98th percentile depths
-    of a pinhole pass (at the reference width) R px there, R·W/800 px on this W-wide image."""
+    of the detail a pinhole pass shows (at the reference width) R px there, R·W/800 px on this
+    W-wide image."""
     _, lens, cam = render(tmp_path, W, *burger_view, "--blur", blur)
     camera = header_camera(cam)
     probe = camera.resized(REFERENCE_WIDTH, REFERENCE_WIDTH * 3 // 4)
-    near, far = depth_range(renderer.render(probe, Lens(1.0, 0.0), dofview.RenderSettings()))
+    near, far = blur_span(renderer.render(probe, Lens(1.0, 0.0), dofview.RenderSettings()))
     assert lens["asked"] == f"--blur {blur}" and near < lens["focus"] < far  # auto focus: on the burger
     largest = Lens(lens["focus"], lens["aperture"]).coc_radius(np.array([near, far])).max()
     assert largest == pytest.approx(radius_at_w, rel=1e-6)
+
+
+def _frame(depth, focus_depth, luma):
+    """A pinhole Frame, fully covered, of grey ``luma`` (display-encoded, [0, 1]) at the depths given."""
+    rgba = np.concatenate([np.repeat(luma[..., None], 3, -1), np.ones_like(luma)[..., None]], -1)
+    return Frame(rgba.astype(np.float32), depth.astype(np.float32), True, focus_depth.astype(np.float32))
+
+
+def test_blur_span_is_where_the_picture_shows_detail():
+    """A subject with detail at depths 1–1.3 (left), a smooth backdrop at 200 covering half of the
+    frame (right), and a strip of fine detail whose pixels mix a faint near splat with the backdrop
+    (mean depth 150, focus depth 10: no single depth). --blur is measured on the subject; the depths
+    in view (the sliders) still reach the backdrop; a frame without detail falls back to them."""
+    h, w = 60, 80
+    yy, xx = np.mgrid[:h, :w]
+    depth = np.where(xx < w // 2, 1.0 + 0.3 * yy / (h - 1), 200.0)
+    focus_depth = depth.copy()
+    luma = np.where(xx < w // 2, 0.3 + 0.4 * ((xx // 2 + yy // 2) % 2), 0.5 + 0.1 * xx / w)
+    strip = (xx >= w // 2) & (yy < 6)
+    luma = np.where(strip, 0.5 + 0.3 * ((xx + yy) % 2), luma)
+    depth, focus_depth = np.where(strip, 150.0, depth), np.where(strip, 10.0, focus_depth)
+    frame = _frame(depth, focus_depth, luma)
+    near, far = blur_span(frame)
+    assert 1.0 <= near < 1.03 and 1.27 < far <= 1.3
+    assert depth_range(frame)[1] == pytest.approx(200.0)
+    flat = _frame(depth, depth, np.full((h, w), 0.5))
+    assert blur_span(flat) == depth_range(flat)
+
+
+def test_blur_percent_on_a_scan_with_a_far_shell_blurs_the_subjects_surroundings(tmp_path):
+    """tests/data/tap.spz: the scan's smooth far shell (100–240 units) covers 44 % of the frame; the
+    tap and its wall are at 1.0–1.4. --blur 2% used to give the shell the 2 % (invisible on it) and
+    the tap's wall about a pixel: 47.6 dB from the pinhole at 200 px. Measured on the detail in view,
+    the 2 % lands on the wall around the tap."""
+    from PIL import Image
+
+    tap = BURGER.with_name("tap.spz")
+    images = {}
+    for name, blur in (("pinhole", "0"), ("dof", "2%")):
+        out = tmp_path / f"{name}.exr"
+        assert main(["render", str(tap), "--width", "200", "--blur", blur, "-o", str(out),
+                     "--png", str(out.with_suffix(".png"))]) == 0
+        images[name] = np.asarray(Image.open(out.with_suffix(".png")), np.float64) / 255.0
+        if name == "dof":
+            lens = json.loads(read_exr(out)[1]["dofview:lens"])
+    assert psnr(images["dof"], images["pinhole"], 1.0) < 36.0
+    # 2 % of the width at the wall behind the tap (1.3–1.4 units), not at the shell
+    wall = Lens(lens["focus"], lens["aperture"]).coc_radius(np.array([1.3, 1.4]))
+    assert 0.6 * 0.02 * 200 < wall.min() and wall.max() < 1.3 * 0.02 * 200
 
 
 def test_blur_at_a_depth(tmp_path, burger_view):
@@ -151,7 +202,14 @@ def test_copied_command_gives_the_same_picture_at_another_width(tmp_path, burger
 
 @pytest.mark.parametrize("argv,needle", [
     (["--blur", "-1"], "argument --blur: blur radius must be ≥ 0, got -1"),
-    (["--blur", "x%"], "argument --blur: blur radius must be a number, got 'x'"),
+    (["--blur", "x%"], "argument --blur: blur radius must be a number, got 'x%'"),
+    # a value that starts like a negative number is --blur's value, named with what is wrong with it
+    (["--blur", "-2%"], "argument --blur: blur radius must be ≥ 0, got -2%"),
+    (["--blur", "-3@inf"], "argument --blur: blur radius must be ≥ 0, got -3"),
+    # bounded: a quarter of the width (500 % used to exit 0 with a frame faded to black)
+    (["--blur", "500%"], "argument --blur: blur radius must be at most 25% of the image width"),
+    (["--blur", "25.5%@inf"], "argument --blur: blur radius must be at most 25% of the image width"),
+    (["--blur", "200.5"], "--blur 200.5: 200.5 px is more than 25% of the 800 px reference width (at most 200 px"),
     (["--blur", "2@"], "argument --blur: --blur: a blur radius such as 4"),
     (["--blur", "2@0"], "argument --blur: blur depth must be > 0, got 0"),
     (["--blur", "2", "--aperture", "10"], "give the aperture one way: --aperture A, --blur R or --fnumber/--focal-mm"),
@@ -162,6 +220,15 @@ def test_bad_blur_values_are_one_line_errors(tmp_path, capsys, burger_view, argv
     rc, err = run_cli(capsys, "render", BURGER, "--width", "32", *burger_view, "-o", out, *argv)
     assert_one_line_error(rc, err, needle)
     assert not out.exists()
+
+
+def test_blur_bound_is_in_the_help_and_holds_at_the_bound(tmp_path, capsys, burger_view):
+    with pytest.raises(SystemExit):
+        main(["render", "--help"])
+    assert "R ≤ 25% of the width" in " ".join(capsys.readouterr().out.split())
+    out = tmp_path / "x.exr"
+    assert main(["render", str(BURGER), "--width", "32", *burger_view, "-o", str(out), "--blur", "200"]) == 0
+    assert main(["render", str(BURGER), "--width", "32", *burger_view, "-o", str(out), "--blur", "25%"]) == 0
 
 
 def test_strength_follows_the_width_through_resized():

@@ -85,9 +85,10 @@ def add_parser(sub) -> None:
     d = BenchConfig()
     g.add_argument("--focus", type=_list_of(focus_value, "focus distances"), help="focus distances or 'auto' (default auto)")
     g.add_argument("--blur", type=_list_of(blur_value, "blur radii"), metavar="R[%][@DEPTH],…",
-                   help="the study's apertures by the blur they make on the bench's image, as render's --blur: the "
-                        "largest blur in view (2nd–98th percentile depths of the first view's pinhole pass) has "
-                        f"radius R px, or R%% of the width; R@DEPTH: at that camera depth (default "
+                   help="the study's apertures by the blur they make on the bench's image: the largest blur over "
+                        "every covered depth (2nd–98th percentile depths of the first view's pinhole pass; render's "
+                        "--blur measures only where the picture shows detail) has "
+                        f"radius R px, or R%% of the width (≤ 25%%); R@DEPTH: at that camera depth (default "
                         f"{','.join(map(str, d.blur))})")
     g.add_argument("--apertures", type=_list_of(_aperture, "apertures"), help="apertures A for the error study, "
                    "px·scene unit, instead of --blur")

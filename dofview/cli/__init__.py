@@ -8,6 +8,7 @@ traceback; outputs are written whole or not at all.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import warnings
 from typing import Sequence
@@ -21,6 +22,12 @@ COMMAND_MODULES = ("dofview.cli.render", "dofview.viewer.app", "dofview.bench.cl
 
 class _Parser(argparse.ArgumentParser):
     """argparse with dofview's one-line errors (sub-commands inherit it): exit status 2, no usage dump."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        # a value that starts like a negative number (--blur -2%, --focus -1:3) is a value, so that its own
+        # parser names what is wrong with it; no dofview option starts with a digit (Python 3.13's rule)
+        self._negative_number_matcher = re.compile(r"-\.?\d")
 
     def error(self, message: str):
         self.exit(2, f"dofview: error: {message} (see '{self.prog} --help')\n")

@@ -112,6 +112,8 @@ def job_from_args(args: argparse.Namespace) -> RenderJob:
     else:
         count = args.frames or 1
         path = [camera_from_args(args, opened)] * count
+    if lens.blur is not None:  # its bound, before any pass is rendered
+        lens.blur.radius_px(path[0].width, path[0].ref_width)
     if count > 1:
         check_pattern(args.output, "-o")
         if args.png is not None:

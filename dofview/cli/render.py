@@ -42,7 +42,8 @@ def render_image(job: RenderJob) -> int:
 
     camera, scene_path, out = job.path[0], job.opened.path, job.outputs
     renderer = get_backend(job.raster, job.opened.scene)
-    focus, span = focus_and_span(renderer, camera, job.settings, scene_path, job.focus, job.lens.needs_span)
+    focus, span = focus_and_span(renderer, camera, job.settings, scene_path, job.focus, job.lens.needs_span,
+                                 job.tonemap)
     lens = job.lens.lens(camera, focus, span)
     save_render(renderer, camera, lens, job.tonemap, job.settings, str(scene_path), out.exr, out.png, half=out.half,
                 lens_info=job.lens.to_dict(), stats=job.stats(renderer), lens_samples=job.lens_samples)

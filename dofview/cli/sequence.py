@@ -16,6 +16,7 @@ from dofview.lens import Lens
 from dofview.options import number
 from dofview.rendering import Renderer
 from dofview.sequence import Shot, focus_pull, render_sequence
+from dofview.tonemap import Tonemap
 
 
 def _pair(text: str, what: str, example: str) -> tuple[str, str]:
@@ -64,12 +65,14 @@ def add_sequence_args(p: argparse.ArgumentParser) -> None:
 
 
 def focus_and_span(renderer: Renderer, camera: Camera, settings: RenderSettings, scene: Path,
-                   focus: float | str, span: bool) -> tuple[float, tuple[float, float] | None]:
+                   focus: float | str, span: bool,
+                   tonemap: Tonemap | None = None) -> tuple[float, tuple[float, float] | None]:
     """``focus`` resolved on ``camera`` ("auto": the depth under the image centre, or nearest to
     it) and, when ``span``, the (near, far) depths in view (scene units) that ``--blur`` is measured
-    on, from pinhole passes (none when neither is needed). The depths are measured at the camera's
-    reference width, so that the same command at any size resolves the same strength, scaled."""
-    from dofview.rendering.focus import auto_focus, depth_range
+    on (:func:`dofview.rendering.focus.blur_span`: where the picture ``tonemap`` shows has detail), from pinhole
+    passes (none when neither is needed). The depths are measured at the camera's reference width,
+    so that the same command at any size resolves the same strength, scaled."""
+    from dofview.rendering.focus import auto_focus, blur_span
 
     pinhole = Lens(1.0, 0.0)
     frame = renderer.render(camera, pinhole, settings) if focus == "auto" else None
@@ -84,7 +87,7 @@ def focus_and_span(renderer: Renderer, camera: Camera, settings: RenderSettings,
         frame = renderer.render(camera.resized(camera.ref_width, height), pinhole, settings)
     elif frame is None:
         frame = renderer.render(camera, pinhole, settings)
-    depths = depth_range(frame)
+    depths = blur_span(frame, tonemap)
     if depths is None:
         raise DofviewError(f"{scene}: the view is empty, --blur has no depths to measure; give --aperture")
     return float(focus), depths
@@ -115,7 +118,8 @@ def run_sequence(job: RenderJob) -> int:
     shots = [Shot(i, cam, f) for i, (cam, f) in enumerate(zip(path, focuses))]
     if job.lens.blur is not None:  # one strength for the shot, from frame 0 whatever --range: every chunk agrees
         first_focus, span = focus_and_span(renderer, path[0], job.settings, scene_path,
-                                           "auto" if math.isnan(focuses[0]) else focuses[0], job.lens.needs_span)
+                                           "auto" if math.isnan(focuses[0]) else focuses[0], job.lens.needs_span,
+                                           job.tonemap)
         aperture = job.lens.lens(path[0], first_focus, span).aperture
 
         def lens_for(cam: Camera, focus: float) -> Lens:
