@@ -98,8 +98,10 @@ def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings
                scene_path: str | None = None, lens_info: dict[str, object] | None = None,
                stats: Stats | None = None) -> dict[str, object]:
     """dofview's EXR header attributes for one view, each from its type's ``to_dict``: version,
-    scene, ``dofview:camera`` (:meth:`Camera.to_dict`), ``dofview:lens`` (:meth:`Lens.to_dict` and
-    ``lens_info``, a :meth:`~dofview.lens.LensRequest.to_dict`: how the aperture was asked for),
+    scene, ``dofview:camera`` (:meth:`Camera.to_dict`), ``dofview:lens`` (:meth:`Lens.to_dict`,
+    ``aperture_at_ref_width``: the ``--aperture`` value that gives this image's strength, held at
+    the camera's ``ref_width`` (:meth:`Lens.aperture_at`), and ``lens_info``, a
+    :meth:`~dofview.lens.LensRequest.to_dict`: how the aperture was asked for),
     ``dofview:exposure``, ``dofview:gamma`` and ``dofview:tonemap`` (:meth:`Tonemap.to_dict`),
     ``dofview:render`` (:meth:`RenderSettings.to_dict` and the scene's colour space); JSON strings
     where structured. :func:`read_header` reads them back."""
@@ -109,7 +111,9 @@ def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings
     display = tm.to_dict()
     header.update({
         "dofview:camera": json.dumps(camera.to_dict()),
-        "dofview:lens": json.dumps({**lens.to_dict(), **(lens_info or {})}),
+        "dofview:lens": json.dumps({**lens.to_dict(),
+                                    "aperture_at_ref_width": lens.aperture_at(camera.width, camera.ref_width),
+                                    **(lens_info or {})}),
         "dofview:exposure": display["exposure"],
         "dofview:gamma": display["gamma"],
         "dofview:tonemap": json.dumps(display["tonemap"]),

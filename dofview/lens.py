@@ -60,12 +60,12 @@ class Lens:
         except (KeyError, TypeError, ValueError) as e:
             raise DofviewError(f"lens record: missing or malformed entry ({e})") from None
 
-    def to_args(self, width: int, ref_width: int) -> list[str]:
-        """``dofview render`` arguments for this lens on an image ``width`` wide whose aperture
-        strengths hold at ``ref_width``: --focus, and --aperture the strength at ``ref_width``
-        that :meth:`dofview.camera.Camera.scaled_aperture` turns back into :attr:`aperture` bit
-        for bit where a float does (A·ref_width/width alone may be off by its last bits), else
-        the one that comes nearest, within a unit in the last place of A."""
+    def aperture_at(self, width: int, ref_width: int) -> float:
+        """The ``--aperture`` value of this lens on an image ``width`` wide whose strengths hold at
+        ``ref_width``: the strength at ``ref_width`` that :meth:`dofview.camera.Camera.scaled_aperture`
+        turns back into :attr:`aperture` bit for bit where a float does (A·ref_width/width alone
+        may be off by its last bits), else the one that comes nearest, within a unit in the last
+        place of A."""
         a = self.aperture
         if width != ref_width and a > 0:
             given = a * ref_width / width
@@ -75,7 +75,12 @@ class Lens:
                 up, down = math.nextafter(up, math.inf), math.nextafter(down, 0.0)
                 near += [up, down]
             a = min(near, key=lambda c: abs(c * width / ref_width - self.aperture))
-        return ["--focus", repr(float(self.focus)), "--aperture", repr(float(a))]
+        return float(a)
+
+    def to_args(self, width: int, ref_width: int) -> list[str]:
+        """``dofview render`` arguments for this lens on an image ``width`` wide whose aperture
+        strengths hold at ``ref_width``: --focus, and --aperture :meth:`aperture_at`."""
+        return ["--focus", repr(float(self.focus)), "--aperture", repr(self.aperture_at(width, ref_width))]
 
 
 @dataclass(frozen=True)

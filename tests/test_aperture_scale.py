@@ -6,6 +6,7 @@ depth of field as without it."""
 from __future__ import annotations
 
 import json
+import re
 import shlex
 
 import numpy as np
@@ -178,6 +179,25 @@ def test_blur_percent_on_a_scan_with_a_far_shell_blurs_the_subjects_surroundings
     # 2 % of the width at the wall behind the tap (1.3–1.4 units), not at the shell
     wall = Lens(lens["focus"], lens["aperture"]).coc_radius(np.array([1.3, 1.4]))
     assert 0.6 * 0.02 * 200 < wall.min() and wall.max() < 1.3 * 0.02 * 200
+
+
+def test_printed_and_recorded_aperture_pass_back_to_the_same_strength(tmp_path, capsys, burger_view):
+    """--width 120 --blur 2% prints the --aperture value that gives the same image at that width
+    (held at the 800 px reference width; it used to print A on the 120 px image, which --aperture
+    then read at 800 px: 0.15× the blur), and the EXR header records it at full precision."""
+    first, again, exact = (tmp_path / f"{n}.exr" for n in ("blur", "again", "exact"))
+    rc, err = run_cli(capsys, "render", BURGER, "--width", "120", *burger_view, "-o", first, "--blur", "2%")
+    assert rc == 0
+    printed = re.search(r"--aperture (\S+) \(at the 800 px reference width; A = (\S+) on these 120 px\)", err)
+    assert printed, err
+    lens = json.loads(read_exr(first)[1]["dofview:lens"])
+    assert float(printed[2]) == pytest.approx(lens["aperture"], rel=1e-3)
+    assert float(printed[1]) == pytest.approx(lens["aperture_at_ref_width"], rel=1e-6)
+    assert lens["aperture_at_ref_width"] == pytest.approx(lens["aperture"] * 800 / 120, rel=1e-12)
+    for out, value in ((again, printed[1]), (exact, repr(lens["aperture_at_ref_width"]))):
+        assert main(["render", str(BURGER), "--width", "120", *burger_view, "-o", str(out), "--aperture", value]) == 0
+    assert json.loads(read_exr(again)[1]["dofview:lens"])["aperture"] == pytest.approx(lens["aperture"], rel=1e-6)
+    assert json.loads(read_exr(exact)[1]["dofview:lens"])["aperture"] == lens["aperture"]
 
 
 def test_blur_at_a_depth(tmp_path, burger_view):

@@ -7,8 +7,10 @@ import sys
 from pathlib import Path
 
 from dofview.api import save_render
+from dofview.camera import Camera
 from dofview.cli.job import RenderJob, job_from_args
 from dofview.cli.sequence import add_sequence_args, focus_and_span, run_sequence
+from dofview.lens import Lens
 from dofview.options import add_lens_args, add_scene_args, add_view_args, number
 
 
@@ -48,6 +50,15 @@ def render_image(job: RenderJob) -> int:
     save_render(renderer, camera, lens, job.tonemap, job.settings, str(scene_path), out.exr, out.png, half=out.half,
                 lens_info=job.lens.to_dict(), stats=job.stats(renderer), lens_samples=job.lens_samples)
     job.opened.say_notes()
-    print(f"{out.exr}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, aperture A={lens.aperture:.4g}, "
+    print(f"{out.exr}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, {aperture_words(camera, lens)}, "
           f"exposure {job.tonemap.exposure:+.4g} EV" + (f"; {out.png}" if out.png else ""), file=sys.stderr)
+
+
+def aperture_words(camera: Camera, lens: Lens) -> str:
+    """The strength as a value to pass back: ``--aperture`` at the camera's reference width (what
+    the same command takes at any --width), with A on this image when that is another width."""
+    given = f"--aperture {lens.aperture_at(camera.width, camera.ref_width):.7g} (at the {camera.ref_width} px reference width"
+    if camera.width == camera.ref_width:
+        return given + ")"
+    return given + f"; A = {lens.aperture:.4g} on these {camera.width} px)"
     return 0
