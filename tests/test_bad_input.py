@@ -281,11 +281,40 @@ def test_invalid_cli_values(tmp_path, capsys, good_ply, cameras, argv, needles):
 
 
 # ---- outputs ------------------------------------------------------------------------------------------
-def test_missing_output_directory(tmp_path, capsys, good_ply):
-    out = tmp_path / "nope" / "x.exr"
+def test_missing_output_folders_are_made_once_everything_is_checked(tmp_path, capsys, good_ply):
+    """As renderers do: `-o out/biker.exr --png out/biker.png` in an empty folder makes out/ (it
+    used to fail with 'folder out does not exist'); a command that fails its checks makes none."""
+    out, png = tmp_path / "nope" / "deeper" / "x.exr", tmp_path / "pngs" / "x.png"
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out, "--png", png, *VIEW)
+    assert rc == 0, err
+    assert out.is_file() and png.is_file()
+    later = tmp_path / "later" / "x.exr"
+    rc, err = run_cli(capsys, "render", tmp_path / "missing.ply", "-o", later, *VIEW)
+    assert_one_line_error(rc, err, "missing.ply")
+    assert not later.parent.exists()
+
+
+def test_output_under_a_file_is_an_error_before_rendering(tmp_path, capsys, good_ply):
+    (tmp_path / "plain").write_bytes(b"a file")
+    out = tmp_path / "plain" / "sub" / "x.exr"
     rc, err = run_cli(capsys, "render", good_ply, "-o", out, *VIEW)
-    assert_one_line_error(rc, err, f"{out}:", f"folder {out.parent} does not exist")
-    assert not out.parent.exists()
+    assert_one_line_error(rc, err, f"{out}:", f"{tmp_path / 'plain'} is a file, not a folder")
+    assert (tmp_path / "plain").read_bytes() == b"a file" and sorted(p.name for p in tmp_path.iterdir()) == ["in", "plain"]
+
+
+def test_unwritable_png_place_leaves_no_exr_behind_even_as_root(tmp_path, capsys, good_ply):
+    """`-o out/ok.exr --png /sys/out.png`: permission bits let root through (os.access says yes),
+    the file system does not; the place is tried before rendering, and out/ok.exr is not written."""
+    place = Path("/sys")
+    try:
+        tempfile.NamedTemporaryFile(dir=place).close()
+        pytest.skip("/sys can be written in here")
+    except OSError:
+        pass
+    out = tmp_path / "out" / "ok.exr"
+    rc, err = run_cli(capsys, "render", good_ply, "-o", out, "--png", place / "out.png", *VIEW)
+    assert_one_line_error(rc, err, f"{place / 'out.png'}:", f"cannot write in {place}")
+    assert not out.exists() and not out.parent.exists()
 
 
 def test_read_only_output_directory(tmp_path, good_ply, unprivileged):
@@ -474,26 +503,28 @@ def test_a_camera_that_sees_none_of_the_scene_says_so(tmp_path, capsys, good_ply
 # ---- every output path is checked before anything is rendered (issue 22) --------------------------------
 @pytest.mark.parametrize("png,needle", [
     ("x.jpg", "--png must name a .png file"),
-    ("nope/x.png", "does not exist"),
+    ("plain/x.png", "plain is a file, not a folder"),
     ("taken.png", "is a folder, not a file name"),
 ])
 def test_bad_png_path_leaves_no_exr_behind(tmp_path, capsys, good_ply, png, needle):
     out = tmp_path / "out"
     out.mkdir()
     (out / "taken.png").mkdir()
+    (out / "plain").write_bytes(b"a file")
     rc, err = run_cli(capsys, "render", good_ply, "-o", out / "x.exr", "--png", out / png, *VIEW)
     assert_one_line_error(rc, err, f"{out / png}:", needle)
-    assert_nothing_written(out, keep=["taken.png"])
+    assert_nothing_written(out, keep=["taken.png", "plain"])
 
 
 def test_bad_sequence_png_path_leaves_no_frame_behind(tmp_path, capsys, good_ply):
     out = tmp_path / "out"
     out.mkdir()
-    png = out / "nope" / "f_%04d.png"
+    (out / "plain").write_bytes(b"a file")
+    png = out / "plain" / "f_%04d.png"
     rc, err = run_cli(capsys, "render", good_ply, "--frames", "3", "--focus", "2:8", "-o", out / "f_%04d.exr",
                       "--png", png, *VIEW[:4])
-    assert_one_line_error(rc, err, f"{png}:", f"folder {out / 'nope'} does not exist")
-    assert_nothing_written(out)
+    assert_one_line_error(rc, err, f"{png}:", f"{out / 'plain'} is a file, not a folder")
+    assert_nothing_written(out, keep=["plain"])
 
 
 def test_read_only_png_folder_leaves_no_exr_behind(tmp_path, good_ply, unprivileged):

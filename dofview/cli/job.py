@@ -6,12 +6,13 @@ neither reads the argparse Namespace again."""
 from __future__ import annotations
 
 import argparse
-import os
 from dataclasses import dataclass
+from pathlib import Path
 
 from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
+from dofview.io.atomic import check_writable, make_folder
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import LensRequest
 from dofview.rendering import Renderer
@@ -125,6 +126,8 @@ def job_from_args(args: argparse.Namespace) -> RenderJob:
     if args.video is not None and (first_frame, last_frame) != (0, count - 1):
         raise DofviewError("--video needs the whole shot: render the ranges first, then once more with "
                            "--resume --video")
+    for _, target in _output_files(args):  # everything checked: the output folders are made, as renderers do
+        make_folder(target)
     return RenderJob(opened, path, args.focus, lens, tm, settings, args.raster, args.stats == "joint",
                      args.lens_samples, Outputs(args.output, args.png, args.video, args.fps, args.half),
                      sequence, range(first_frame, last_frame + 1), args.resume,
@@ -146,27 +149,30 @@ def _views(args: argparse.Namespace, opened: OpenedScene) -> tuple[list[Camera],
 
 def check_outputs(args: argparse.Namespace) -> None:
     """Every output path, before anything is rendered (so a bad --png leaves no EXR behind): the
-    right ending, an existing folder that can be written to, and not a folder itself. A sequence's
-    numbered names are checked with frame 0 filled in."""
+    right ending, a place this process can write in (a missing folder is made once every option
+    is checked; one under a file, or in /sys, is an error now), and not a folder itself. A
+    sequence's numbered names are checked with frame 0 filled in."""
     if args.output.suffix.lower() != ".exr":
         raise DofviewError(f"{args.output}: output must be an .exr file")
     if args.png is not None and args.png.suffix.lower() != ".png":
         raise DofviewError(f"{args.png}: --png must name a .png file")
     if args.video is not None:
         check_video(args.video)
-    numbered = is_sequence(args)
+    for given, target in _output_files(args):
+        check_writable(target, shown=given)
+        if target.is_dir():
+            raise DofviewError(f"{given}: is a folder, not a file name")
+
+
+def _output_files(args: argparse.Namespace) -> list[tuple[Path, Path]]:
+    """(output option's value, the file it names): frame 0's for a sequence's numbered names."""
+    numbered, files = is_sequence(args), []
     for path in (args.output, args.png, args.video):
         if path is None:
             continue
         try:
-            target = frame_name(path, 0) if numbered and path is not args.video else path
+            files.append((path, frame_name(path, 0) if numbered and path is not args.video else path))
         except (TypeError, ValueError):  # no frame number (check_pattern says so): checked as written
-            target = path
-        folder = target.parent
-        if not folder.is_dir():
-            raise DofviewError(f"{path}: folder {folder} does not exist")
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise DofviewError(f"{path}: Permission denied: folder {folder} cannot be written to")
-        if target.is_dir():
-            raise DofviewError(f"{path}: is a folder, not a file name")
+            files.append((path, path))
+    return files
 

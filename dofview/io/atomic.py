@@ -46,6 +46,46 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         raise
 
 
+def check_writable(path: str | Path, shown: str | Path | None = None) -> None:
+    """Check, before any work, that ``path`` can be written: its folder, or the nearest folder
+    above it that exists (:func:`make_folder` makes the rest), is a folder this process can create
+    a file in. Tried by creating and removing a file, not by permission bits, which a root process
+    passes even where the file system refuses it (/sys, a read-only mount). Errors name ``shown``
+    (default ``path``), e.g. the numbered pattern a frame's name came from.
+
+    Raises:
+        DofviewError: the path runs through a file, or the folder cannot be written in.
+    """
+    path = Path(path)
+    shown = path if shown is None else shown
+    folder = path.parent if str(path.parent) else Path(".")
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise DofviewError(f"{shown}: {existing} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=existing)
+    except OSError as e:
+        raise DofviewError(f"{shown}: cannot write in {existing} ({e.strerror or e})") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def make_folder(path: str | Path) -> None:
+    """Make the folder of ``path`` and its missing parents (as ``mkdir -p``), once
+    :func:`check_writable` has passed.
+
+    Raises:
+        DofviewError: a folder cannot be made.
+    """
+    folder = Path(path).parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise DofviewError(f"{path}: cannot make folder {folder} ({e.strerror or e})") from None
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
