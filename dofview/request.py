@@ -173,8 +173,9 @@ def tonemap_from_args(args: argparse.Namespace, colour_space: str = "srgb") -> T
         exposure = shutter_ev(args.shutter, args.fnumber)
     else:
         exposure = args.exposure
-    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background,
-                   operator=operator_from_args(args, colour_space))
+    operator = operator_from_args(args, colour_space)
+    operator.require()  # --tonemap aces without OpenColorIO: said before anything is rendered
+    return Tonemap(exposure=exposure, gamma=args.gamma, background=args.background, operator=operator)
 
 
 def settings_from_args(args: argparse.Namespace) -> RenderSettings:

@@ -15,7 +15,8 @@ from typing import Callable, Sequence
 from dofview.bench.runner import run_bench
 from dofview.bench.variants import QUICK, BenchConfig
 from dofview.camera import Camera
-from dofview.errors import DofviewError
+from dofview.errors import DofviewError, require_extra
+from dofview.io.atomic import check_writable
 from dofview.frame import OPACITY_NORMS, RenderSettings
 from dofview.io.cameras import load_cameras_json, select_camera
 from dofview.options import add_scene_args, add_view_args, blur_value, focus_value, number, tau_value
@@ -105,6 +106,8 @@ def add_parser(sub) -> None:
     g.add_argument("--count-size", type=_size, help="image size for the Gaussian-count scaling, WxH (default {}x{})".format(*d.count_size))
     g.add_argument("--widths", type=_list_of(_positive_int, "widths"), help=f"image widths for resolution scaling (default {_csv(d.widths)})")
     g.add_argument("--no-scaling", action="store_true", help="skip the scaling measurements")
+    g.add_argument("--no-plots", action="store_true", help="write the CSVs and the Markdown report only (the PNG "
+                   "plots need matplotlib: pip install 'dofview[bench]')")
     g.add_argument("--bench-width", type=_positive_int, default=320, help="image width when --width is not given (default 320)")
     g.add_argument("--exposure", type=number(-60, 60, hi_open=False, what="exposure"), default=0.0,
                    help="display exposure in EV stops for PSNR/SSIM (default 0)")
@@ -152,6 +155,9 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or Path(f"{'study' if args.views else 'bench'}_{args.scene.stem}")
     if out.exists() and not out.is_dir():
         raise DofviewError(f"{out}: exists and is not a folder")
+    check_writable(out / "report.md")  # minutes of measuring must not end in a refusal to write
+    if not args.no_plots:
+        require_extra("matplotlib", "bench", "dofview bench's plots", "or --no-plots: the CSVs and the report alone")
     opened = open_scene(args, cameras=_auto_cameras(args.scene))
     scene = opened.scene
     command = "dofview bench " + " ".join(_bench_argv(args))
@@ -165,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = run_bench(scene, cameras, cfg, base, tm, scaling=not args.no_scaling)
     out.mkdir(parents=True, exist_ok=True)
-    files = write_outputs(out, result, command, time.perf_counter() - t0)
+    files = write_outputs(out, result, command, time.perf_counter() - t0, plots=not args.no_plots)
     print(f"{out}: " + ", ".join(p.name for p in files), file=sys.stderr)
     return 0
 

@@ -405,20 +405,23 @@ def _save(fig, path: Path) -> None:
     plt.close(fig)
 
 
-def write_outputs(out: Path, result: dict, command: str, seconds: float) -> list[Path]:
-    """Write CSVs, report.md and plots into ``out``; returns the paths written."""
+def write_outputs(out: Path, result: dict, command: str, seconds: float, plots: bool = True) -> list[Path]:
+    """Write CSVs, report.md and (``plots``) the PNG plots into ``out``; returns the paths written."""
     cfg, base = result["config"], result["base"]
-    files = [out / "timing.csv", out / "error.csv", out / "report.md", out / "bench_speed_error.png",
-             out / "bench_ratios.png"]
+    files = [out / "timing.csv", out / "error.csv", out / "report.md"]
     write_csv(files[0], result["timing"])
     write_csv(files[1], result["error"])
     text = "\n".join(report_lines(result, command, seconds)) + "\n"
     with atomic_output(files[2]) as tmp:
         tmp.write_text(text)
-    plot_speed_error(files[3], result["error"], cfg, base, result["blur_px"])
-    plot_ratios(files[4], result["timing"], cfg, result["blur_px"])
     if result["scaling"]:
-        files += [out / "scaling.csv", out / "bench_scaling.png"]
-        write_csv(files[5], result["scaling"])
-        plot_scaling(files[6], result["scaling"])
+        files.append(out / "scaling.csv")
+        write_csv(files[-1], result["scaling"])
+    if plots:
+        files += [out / "bench_speed_error.png", out / "bench_ratios.png"]
+        plot_speed_error(files[-2], result["error"], cfg, base, result["blur_px"])
+        plot_ratios(files[-1], result["timing"], cfg, result["blur_px"])
+        if result["scaling"]:
+            files.append(out / "bench_scaling.png")
+            plot_scaling(files[-1], result["scaling"])
     return files

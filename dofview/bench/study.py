@@ -254,7 +254,8 @@ def run_cli(args, scene: GaussianScene, out: Path, command: str) -> int:
     summary = summarise(rows)
     write_csv(out / "study.csv", rows)
     name = args.scene.name
-    plot_study(out / "study.png", name, summary, ref)
+    if not args.no_plots:
+        plot_study(out / "study.png", name, summary, ref)
     lines = [f"# Depth of field against the physical thin lens: {name}", "",
              (f"`{command}` ({time.perf_counter() - t0:.0f} s); {w}×{h} px, {args.views} views × focus at depth "
               f"percentiles {', '.join(f'{p:g}' for p in args.focus_pct)} × CoC "
@@ -265,5 +266,5 @@ def run_cli(args, scene: GaussianScene, out: Path, command: str) -> int:
                  f"{fixed['default']:.2f}×, "
                  f"per-splat k = 1/4 {fixed['splat k=1/4']:.2f}× (mean over views and focus distances)")
     (out / "study.md").write_text("\n".join(lines) + "\n")
-    print(f"{out}: study.csv, study.md, study.png", file=sys.stderr)
+    print(f"{out}: study.csv, study.md" + ("" if args.no_plots else ", study.png"), file=sys.stderr)
     return 0

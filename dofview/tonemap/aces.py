@@ -81,6 +81,9 @@ class Aces(Operator):
     def generated_glsl(self):
         return gpu_shader()
 
+    def require(self) -> None:
+        _processor()
+
     def apply(self, rgb, *, stats=None, exposure=1.0, alpha=None, depth=None) -> np.ndarray:
         _, proc = _processor()
         px = np.ascontiguousarray(np.maximum(rgb, 0.0), dtype=np.float32).reshape(-1, 3)

@@ -133,6 +133,10 @@ class Operator:
         ``#include GENERATED`` in its .glsl, lookup tables as textures); None for the others."""
         return
 
+    def require(self) -> None:
+        """Check, before a command's work starts, that what this operator runs on is installed
+        (``aces``: OpenColorIO); a DofviewError naming the package to install when not."""
+
     def params(self) -> dict[str, float]:
         """Parameter values by name (the EXR header, the viewer's sliders)."""
         from dataclasses import asdict

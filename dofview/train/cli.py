@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from dofview.errors import DofviewError
+from dofview.errors import DofviewError, require_extra
 from dofview.options import number, vec3
 from dofview.request import open_scene
 
@@ -110,6 +110,8 @@ def run_train(args: argparse.Namespace) -> int:
 
     if args.output.suffix.lower() != ".ply":
         raise DofviewError(f"{args.output}: output must be a .ply file")
+    if args.plot:  # before the training, not after it
+        require_extra("matplotlib", "bench", f"--plot {args.plot}")
     dataset = load_dataset(args.dataset)
     config = TrainConfig(iterations=args.iterations, warmup=min(args.warmup, args.iterations), initial=args.gaussians,
                          max_gaussians=args.max_gaussians, variant=args.variant, seed=args.seed,
