@@ -18,6 +18,9 @@ KERNELS: tuple[str, ...] = ("gaussian", "disk")
 DOF_MODES: tuple[str, ...] = ("splat", "sliced")
 
 
+BLADES_MAX = 64  # aperture blades of the sliced mode: 0 (a disk) or 3…BLADES_MAX
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     """Splatting settings shared by the GL renderer and the CPU reference.
@@ -76,8 +79,8 @@ class RenderSettings:
             raise DofviewError(f"near plane must be finite and > 0, got {self.near}")
         if self.dof not in DOF_MODES:
             raise DofviewError(f"depth of field mode must be one of {', '.join(DOF_MODES)}, got {self.dof!r}")
-        if self.blades != 0 and not (3 <= self.blades <= 64):
-            raise DofviewError(f"aperture blades must be 0 (a disk) or 3…64, got {self.blades}")
+        if self.blades != 0 and not (3 <= self.blades <= BLADES_MAX):
+            raise DofviewError(f"aperture blades must be 0 (a disk) or 3…{BLADES_MAX}, got {self.blades}")
         if not math.isfinite(self.blade_rotation):
             raise DofviewError(f"blade rotation must be a finite number of degrees, got {self.blade_rotation}")
 

@@ -14,7 +14,7 @@ from typing import Callable
 
 from dofview.camera import REFERENCE_WIDTH, Camera
 from dofview.errors import DofviewError
-from dofview.frame import CUT_MODES, DOF_MODES, KERNELS, OPACITY_NORMS, RenderSettings
+from dofview.frame import BLADES_MAX, CUT_MODES, DOF_MODES, KERNELS, OPACITY_NORMS, RenderSettings
 from dofview.framing import UP_AXES
 from dofview.io.spz import AXES as SPZ_AXES
 from dofview.lens import BlurSpec, Lens
@@ -180,7 +180,7 @@ def add_lens_args(p: argparse.ArgumentParser, focus_pull: bool = False) -> None:
     g.add_argument("--blend-linear", action="store_true", help="decode splat colours to linear light before blending (sRGB scenes)")
     g.add_argument("--kernel", choices=KERNELS, default=RenderSettings.kernel, help=f"aperture kernel: a Gaussian, or the splat spread over the CoC disk (default {RenderSettings.kernel})")
     g.add_argument("--dof", choices=DOF_MODES, default=RenderSettings.dof, help="depth of field: blend depth slices as a pinhole and blur each slice with the aperture (rendering/sliced.py; the default), or blur each splat (the published single pass; --k, --opacity-norm, --cut and --kernel shape it)")
-    g.add_argument("--blades", type=number(0, 64, hi_open=False, integer=True, what="blades"), default=0, help="aperture blades of --dof sliced: 0 = a round disk (default), 3…64 a regular polygon")
+    g.add_argument("--blades", type=number(0, BLADES_MAX, hi_open=False, integer=True, what="blades"), default=0, help=f"aperture blades of --dof sliced: 0 = a round disk (default), 3…{BLADES_MAX} a regular polygon")
     g.add_argument("--blade-rotation", type=number(what="blade rotation"), default=0.0, metavar="DEG", help="rotation of the --blades polygon's first corner, degrees from image right (default 0)")
 
 

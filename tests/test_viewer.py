@@ -179,6 +179,21 @@ def test_window_matches_headless_render(session, name, focus_aid):
     assert psnr(shown, expected, 255.0) >= MIN_PSNR
 
 
+def test_status_times_are_parts_of_one_frame(session):
+    """Every report of the session (several right after a lens change, which splats): the status
+    shows the last complete frame and the splatting pass drawn in it, from one clock, so the part
+    never exceeds the whole (it showed 'frame 637.8 ms splat 725.6 ms': one frame's splat beside
+    the frame before it)."""
+    _, r = session
+    splats = 0
+    for name, report in r.items():
+        t = report["times"]
+        assert 0.0 < t["frame_ms"] and 0.0 <= t["splat_ms"] <= t["frame_ms"], (name, t)
+        assert t["status"].startswith(f"frame {t['frame_ms']:.1f} ms (splat {t['splat_ms']:.1f} ms)"), (name, t)
+        splats += t["splat_ms"] > 0
+    assert splats > 0  # some reports follow a frame that splatted
+
+
 def test_blur_method_and_blades_reach_the_renderer(session):
     """The panel's "blur method" and "aperture blades" (script "set" as the panel sets them): the
     depth-layer default, a hexagon, then the per-splat method."""

@@ -223,3 +223,20 @@ def test_click_to_focus_depth_on_the_cards(width):
             assert depth == pytest.approx(card.depth, rel=0.05)
     assert depth_at(frame, -50, -50) is None  # outside the image: nothing to focus on
     renderer.release()
+
+
+def test_frame_times_show_one_frame_and_its_own_splat():
+    """A long frame that splats, then short ones that keep the image: each status pairs a frame
+    with the splat drawn in it (the old status paired this frame's splat with the last frame's
+    length, and kept a splat time on frames that drew none)."""
+    from dofview.viewer.timing import FrameTimes
+
+    times = FrameTimes()
+    times.begin(10.0)
+    times.splatted(725.6)  # a slow splatting pass, within a frame of 0.75 s
+    times.begin(10.75)
+    assert (times.frame_ms, times.splat_ms) == pytest.approx((750.0, 725.6))
+    times.begin(10.78)  # a frame that kept the image
+    assert (times.frame_ms, times.splat_ms) == pytest.approx((30.0, 0.0))
+    assert times.status(12.0) == "frame 30.0 ms (splat 0.0 ms)  last sort 12.0 ms"
+    assert list(times.periods) == pytest.approx([750.0, 30.0])

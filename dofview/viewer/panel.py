@@ -6,18 +6,18 @@ from __future__ import annotations
 
 import math
 import shutil
-from collections import deque
 from dataclasses import replace
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from imgui_bundle import imgui
 
-from dofview.frame import DOF_MODES, OPACITY_NORMS
+from dofview.frame import BLADES_MAX, DOF_MODES, OPACITY_NORMS
 from dofview.io import READERS
 from dofview.scene import COLOUR_SPACES
 from dofview.viewer.input import HELP
 from dofview.viewer.settings import MAX_COC_PX
+from dofview.viewer.timing import FrameTimes
 
 if TYPE_CHECKING:
     from dofview.viewer.model import ViewerModel
@@ -40,7 +40,7 @@ class PanelHost(Protocol):
     save_png: bool
     open_path: str
     dialog: object | None
-    frame_ms: deque[float]
+    times: FrameTimes
     panel_layout: dict[str, float | list[float]]
 
     def save(self) -> None: ...
@@ -139,7 +139,7 @@ def _aperture_shape(v: "PanelHost") -> None:
          "with the aperture, as a lens does (the default); per splat blurs each splat on its own,\n"
          "the published single pass (its settings: Splatting)")
     imgui.begin_disabled(rs.dof != "sliced")
-    changed_blades, blades = imgui.slider_int("aperture blades", rs.blades, 0, 16)
+    changed_blades, blades = imgui.slider_int("aperture blades", rs.blades, 0, BLADES_MAX)
     _tip("--blades: 0 a round aperture, 3 and more a polygon (bokeh shapes);\n"
          "in front of the focus plane a lens shows it turned half a turn")
     changed_rot, rotation = _slider("blade rotation", rs.blade_rotation, 0.0, 360.0, "%.0f deg")
@@ -251,8 +251,12 @@ def _camera(v: "PanelHost") -> None:
 def _status(v: "PanelHost") -> None:
     """A fixed number of lines whatever the state, so the widgets below never move."""
     st = v.model.renderer.stats
-    ft = np.array(v.frame_ms or [0.0], np.float32)
-    imgui.text(f"frame {ft[-1]:.1f} ms  splat {v.model.render_ms:.1f} ms  sort {st.sort_ms:.1f} ms")
+    ft = np.array(v.times.periods or [0.0], np.float32)
+    imgui.text(v.times.status(st.sort_ms))
+    _tip("frame: the last frame, start to start (its work, the swap, the wait for input);\n"
+         "splat: the splatting pass drawn in it (0: the image was kept);\n"
+         "last sort: the quad backend's last depth sort, on its own thread beside the frames\n"
+         "(the compute backend sorts on the GPU within the splatting pass)")
     imgui.plot_lines("##frametimes", ft, overlay_text=f"max {ft.max():.0f} ms", scale_min=0.0,
                      graph_size=imgui.ImVec2(-1, 40))
     imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")

@@ -9,7 +9,6 @@ panel over the right, write the PNGs asked for.
 from __future__ import annotations
 
 import time
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +21,8 @@ from dofview.viewer.input import InputHandler
 from dofview.viewer.model import ViewerModel
 from dofview.viewer.panel import PANEL_WIDTH, draw_ui
 from dofview.viewer.settings import ViewerSettings
+from dofview.viewer.timing import FrameTimes
 from dofview.viewer.window import Window
-
-FRAME_HISTORY = 120
 
 
 class Viewer:
@@ -38,7 +36,7 @@ class Viewer:
         self.ctx = window.ctx
         self.show_help = False
         self.fly_mode = False
-        self.frame_ms: deque[float] = deque(maxlen=FRAME_HISTORY)
+        self.times = FrameTimes()
         self.frames = 0
         self.save_path = "view.exr"
         self.save_png = True
@@ -49,7 +47,6 @@ class Viewer:
         # where the panel drew its parts, window units (panel.draw_ui; the tests check the layout)
         self.panel_layout: dict[str, float | list[float]] = {}
         self.handle_input = InputHandler()
-        self._last_frame = time.perf_counter()
         self.model = ViewerModel(self.ctx, self._image_size, scene, scene_path, settings, camera, cameras, up, raster)
         self._titled: int | None = None  # the model's scene generation the title names
         self._title()
@@ -104,13 +101,15 @@ class Viewer:
     def frame(self) -> None:
         """Run one frame: events already polled by the caller."""
         now = time.perf_counter()
-        self.frame_ms.append((now - self._last_frame) * 1e3)
-        self._last_frame = now
+        self.times.begin(now)
         self.model.poll()
         self._title()
         self.window.begin_frame()
         self.handle_input(self)
+        draws = self.model.splat_draws
         self._show(now)
+        if self.model.splat_draws != draws:
+            self.times.splatted(self.model.render_ms)
         draw_ui(self)
         self.window.end_frame()
         fw, fh = self.window.framebuffer_size
@@ -124,6 +123,8 @@ class Viewer:
         """The model's state and the window's as plain data (the script's ``report`` action)."""
         return {
             **self.model.report(), "show_help": self.show_help, "fly_mode": self.fly_mode, "frames": self.frames,
+            "times": {"frame_ms": self.times.frame_ms, "splat_ms": self.times.splat_ms,
+                      "status": self.times.status(self.model.renderer.stats.sort_ms)},
             "clipboard": self.window.clipboard(),
             # ImGui's state after the last frame: a text field being edited takes the keys
             "keyboard_captured": imgui.get_io().want_capture_keyboard, "ui_active": imgui.is_any_item_active(),
