@@ -28,12 +28,7 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         raise DofviewError(f"{path}: folder {folder} does not exist")
     if path.is_dir():
         raise DofviewError(f"{path}: is a directory")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
-    except OSError as e:
-        raise DofviewError(f"{path}: cannot write in {folder} ({e.strerror or e})") from None
-    os.close(fd)
-    tmp_path = Path(tmp)
+    tmp_path = _new_file(folder, path, ".part", path)
     try:
         yield tmp_path
         os.chmod(tmp_path, 0o666 & ~_umask())
@@ -64,12 +59,18 @@ def check_writable(path: str | Path, shown: str | Path | None = None) -> None:
         existing = existing.parent
     if not existing.is_dir():
         raise DofviewError(f"{shown}: {existing} is a file, not a folder")
+    _new_file(existing, path, ".probe", shown).unlink()
+
+
+def _new_file(folder: Path, path: Path, suffix: str, shown: str | Path) -> Path:
+    """A new empty hidden file in ``folder`` named after ``path``; a DofviewError naming ``shown``
+    when the folder refuses it."""
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=existing)
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=folder)
     except OSError as e:
-        raise DofviewError(f"{shown}: cannot write in {existing} ({e.strerror or e})") from None
+        raise DofviewError(f"{shown}: cannot write in {folder} ({e.strerror or e})") from None
     os.close(fd)
-    os.unlink(probe)
+    return Path(name)
 
 
 def make_folder(path: str | Path) -> None:
