@@ -50,6 +50,7 @@ ENCLOSED = 0.6  # a place has surfaces in at least this share of the directions 
 # windows and an open side let the others out: 0.7 in the shared corridor, kitchen and showroom)
 SPHERE_RAYS = 256  # directions sampled over the sphere for that share
 AZIMUTHS = 72  # horizontal rays from the eye (5° apart) for what it sees at eye height
+CANDIDATES = 16  # the clearest open spaces tried, in turn, for surfaces around them
 FAN = math.radians(30.0)  # the side looked along is the one with the longer mean reach within this of the axis
 STEP_BACK = 0.5  # the eye steps back this share of the free way behind it
 ELEVATION_DEG = 20.0  # the overview camera looks down on the scene by this much
@@ -427,19 +428,18 @@ def _clearance(blocked: np.ndarray) -> np.ndarray:
     return dist
 
 
-def _march(hit: np.ndarray, start: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rays through a boolean grid ``hit`` (2-D or 3-D) from ``start`` (D,) in cell units along unit
-    ``dirs`` (K, D), in half-cell steps: (K,) distances in cells to the first ``hit`` cell, or to
-    where the ray leaves the grid, and (K,) bool whether it met one."""
+def _march(hit: np.ndarray, starts: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays through a boolean grid ``hit`` (2-D or 3-D) from each of ``starts`` (M, D) in cell units
+    along each unit direction of ``dirs`` (K, D), in half-cell steps: (M, K) distances in cells to the
+    first ``hit`` cell, or to where the ray leaves the grid, and (M, K) bool whether it met one."""
     dims = np.array(hit.shape)
-    dist = np.zeros(len(dirs))
-    met = np.zeros(len(dirs), bool)
-    going = np.ones(len(dirs), bool)
+    dist = np.zeros((len(starts), len(dirs)))
+    met = np.zeros(dist.shape, bool)
+    going = np.ones(dist.shape, bool)
     for n in range(1, int(2 * np.linalg.norm(dims)) + 2):
-        cells = np.floor(start + 0.5 * n * dirs).astype(np.int64)
-        inside = np.all((cells >= 0) & (cells < dims), axis=1)
-        stop = going & ~inside
-        dist[stop] = 0.5 * n
+        cells = np.floor(starts[:, None, :] + 0.5 * n * dirs[None, :, :]).astype(np.int64)
+        inside = np.all((cells >= 0) & (cells < dims), axis=2)
+        dist[going & ~inside] = 0.5 * n
         going &= inside
         now = going.copy()
         now[going] = hit[tuple(cells[going].T)]
@@ -487,9 +487,10 @@ def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
     room's height from any obstacle, and surfaces around it: at least :data:`ENCLOSED` of the
     directions from the eye meet one (a doorway or a window lets a few through).
 
-    The eye stands where the floor is clearest (furthest from walls and furniture), at
-    :data:`EYE_HEIGHT` of the floor-to-ceiling height, looking level along the principal axis of what
-    it sees at that height (its isovist: the room's long way), towards the side that reaches
+    The eye stands where the floor is clearest (furthest from walls, furniture and floaters; the
+    first of the :data:`CANDIDATES` clearest open spaces with surfaces around it), at
+    :data:`EYE_HEIGHT` of the floor-to-ceiling height, looking level along the principal axis of
+    what it sees at that height (its isovist: the room's long way), towards the side that reaches
     further; then steps back :data:`STEP_BACK` of the free way behind it (keeping
     :data:`MIN_CLEARANCE`), so that the first frame shows the room's length."""
     if scene.count == 0:
@@ -515,19 +516,31 @@ def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
     touched = (grid.cover[:, :, max(eye_k - 1, 0):eye_k + 2] >= TOUCHED).any(axis=2)
     obstacles = ~stand | sight | touched
     clear = _clearance(obstacles)
-    best = np.unravel_index(int(np.argmax(clear)), clear.shape)
-    if clear[best] < max(2.0, MIN_CLEARANCE * height):
-        return None
     level = float(np.count_nonzero(stand & (np.abs(above - ceiling) <= LEVEL_TOLERANCE * height)))
     level /= float(np.count_nonzero(stand))
-    start = np.array([best[0] + 0.5, best[1] + 0.5, eye_k + 0.5])
-    _, met = _march(sealed, start, _sphere(SPHERE_RAYS))
-    enclosure = float(met.mean())
-    if enclosure < ENCLOSED or level < ROOFED:
+    room = stand & (clear >= max(2.0, MIN_CLEARANCE * height))
+    if level < ROOFED or not room.any():
         return None
+    # the clearest places to stand, each the clearest of its open space (none within another's
+    # clearance), clearest first; the eye takes the first with surfaces around it (a terrace's
+    # clear strip may look out at nothing)
+    cells = []
+    for cell in np.argwhere(room)[np.argsort(-clear[room], kind="stable")]:
+        if all(np.hypot(*(cell - other)) >= clear[tuple(other)] for other in cells):
+            cells.append(cell)
+            if len(cells) == CANDIDATES:
+                break
+    cells = np.array(cells)
+    starts = np.column_stack([cells + 0.5, np.full(len(cells), eye_k + 0.5)])
+    _, met = _march(sealed, starts, _sphere(SPHERE_RAYS))
+    enclosed = met.mean(axis=1) >= ENCLOSED
+    if not enclosed.any():
+        return None
+    pick = int(np.argmax(enclosed))
+    best, start, enclosure = cells[pick], starts[pick], float(met[pick].mean())
     angles = np.arange(AZIMUTHS) * 2 * math.pi / AZIMUTHS
     dirs = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    reach, _ = _march(sight, start[:2], dirs)
+    reach = _march(sight, start[None, :2], dirs)[0][0]
     # principal axis of the isovist (the star polygon of the reaches about the eye): its central
     # second moment ∫∫ (x − c)(x − c)ᵀ dA, from ∫₀ᵈ r^(k+1) dr = d^(k+2)/(k+2) per ray
     area = float((reach**2 / 2).sum())
@@ -537,9 +550,9 @@ def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
     fan = np.cos(FAN) < dirs @ axis
     if reach[fan].mean() < reach[np.cos(FAN) < -(dirs @ axis)].mean():
         axis = -axis
-    behind, _ = _march(obstacles, start[:2], -axis[None])  # as far as one can stand
-    back = max(0.0, min(STEP_BACK * float(behind[0]), float(behind[0]) - MIN_CLEARANCE * height))
-    position = np.array(best, np.float64) - back * axis
+    behind, _ = _march(obstacles, start[None, :2], -axis[None])  # as far as one can stand
+    back = max(0.0, min(STEP_BACK * float(behind[0, 0]), float(behind[0, 0]) - MIN_CLEARANCE * height))
+    position = best - back * axis
     eye_height = grid.origin[2] + (floor + 0.5 + EYE_HEIGHT * height) * grid.cell
     eye = grid.world(position, eye_height)
     look = axis[0] * frame[0] + axis[1] * frame[1]
