@@ -5,8 +5,8 @@ Without cameras a scene is framed from its opacity-weighted percentile box (floa
 near-transparent haze do not shrink the object to a dot), looked at slightly from above along the
 world up that :func:`guess_up` finds. A place (a room, a corridor, a flat: a floor, a level ceiling
 over it, surfaces around; :func:`find_place`) is seen from inside instead, from where a person would
-stand, at eye height, along its long way. With cameras the orbit pivot is the point nearest to all their optical axes and world up
-is their mean up.
+stand, at eye height, along its long way. With cameras the orbit pivot is the point nearest to all
+their optical axes and world up is their mean up.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ EYE_HEIGHT = 0.55  # the eye stands this fraction of the way from floor to ceili
 LEVEL_SPAN = 0.15  # the floor is sought this fraction of the box height above the lowest surfaces seen
 ROOFED = 0.5  # a place has a ceiling over at least this share of its free floor, level over this share
 # of where one can stand (a dome, an object's top, the sky are not)
+STOREY = 0.6  # a place's floor and ceiling span at least this share of its box's height (0.9–1 in rooms)
 KNEE = 0.1  # of the room's height: the floor's tolerance, and where the space a body needs begins
 LEVEL_TOLERANCE = 0.2  # of the room's height: a ceiling this near its level counts as level (coffers,
 # a dropped ceiling, rooms of a flat a little higher or lower; a dome's sides come down further)
@@ -373,11 +374,10 @@ def _occupancy(scene: GaussianScene, frame: np.ndarray, stride: int) -> _Grid:
     return _Grid(cover.reshape(tuple(dims)), lo, cell, frame)
 
 
-def _levels(occ: np.ndarray) -> tuple[int, int, np.ndarray, np.ndarray, int] | None:
+def _levels(occ: np.ndarray) -> tuple[int, int, np.ndarray, np.ndarray, int] | str:
     """Floor and ceiling cells (k indices along up) of the occupied cells ``occ`` (X, Y, Z) bool seen
-    from the free space, or None without a
-    ceiling over most of it; also, per column, the first surface below and above the eye (−1 and
-    Z where none) and the eye's layer.
+    from the free space, per column the first surface below and above the eye (−1 and Z where
+    none), and the eye's layer; or why there are none, in words (no ceiling over most of it).
 
     From a first eye level at :data:`EYE_HEIGHT` of the box, each column free there looks down and
     up. The floor is the commonest first surface below in the lowest part of those (from the 15th
@@ -393,8 +393,10 @@ def _levels(occ: np.ndarray) -> tuple[int, int, np.ndarray, np.ndarray, int] | N
         above = np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2)
         free = ~occ[:, :, eye] & (below >= 0)
         roofed = free & (above < nz)
-        if not free.any() or roofed.sum() < ROOFED * free.sum():
-            return None
+        if not free.any():
+            return "no floor under free space"
+        if roofed.sum() < ROOFED * free.sum():
+            return f"no ceiling over the free floor (over {roofed.sum() / free.sum():.0%} of it)"
         hist = np.bincount(below[free], minlength=nz)
         q15 = int(np.searchsorted(np.cumsum(hist), 0.15 * hist.sum()))
         floor = q15 + int(np.argmax(hist[q15:q15 + span + 1]))
@@ -402,7 +404,7 @@ def _levels(occ: np.ndarray) -> tuple[int, int, np.ndarray, np.ndarray, int] | N
         q85 = int(np.searchsorted(np.cumsum(hist), 0.85 * hist.sum()))
         ceiling = max(q85 - span, 0) + int(np.argmax(hist[max(q85 - span, 0):q85 + 1]))
         if ceiling - floor < 4:
-            return None
+            return "floor and ceiling less than 4 cells apart"
         eye = int(round(floor + EYE_HEIGHT * (ceiling - floor)))
     below = np.where(occ[:, :, :eye], k[:eye], -1).max(axis=2)
     above = np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2)
@@ -477,12 +479,20 @@ def _sphere(n: int) -> np.ndarray:
 
 
 def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
-    """Where to stand in a scene that is a place (a room, a corridor, a flat), or None for an object.
+    """:func:`judge_place`'s place, or None for an object."""
+    place = judge_place(scene, up)
+    return place if isinstance(place, Place) else None
+
+
+def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
+    """Where to stand in a scene that is a place (a room, a corridor, a flat), or why it is an object,
+    in words.
 
     The scene's surfaces are voxelised in cubes (:func:`_occupancy`, up along ``up`` (3,)). A place
     has a floor under its free space and a ceiling over it (:func:`_levels`: an object has no ceiling
-    over the space around it; a hollow shell's dome over its inside is no level plane over most of
-    it), somewhere one can stand (a column whose first surface below the eye is the floor, nothing
+    over the space around it), the two spanning most of the scene's height (:data:`STOREY`: not two
+    layers inside an object), the ceiling level over most of where one can stand (a hollow shell's
+    dome is not), somewhere one can stand (a column whose first surface below the eye is the floor, nothing
     from knee to above the eye: not on a table, not in a wall), at least :data:`MIN_CLEARANCE` of the
     room's height from any obstacle, and surfaces around it: at least :data:`ENCLOSED` of the
     directions from the eye meet one (a doorway or a window lets a few through).
@@ -494,33 +504,39 @@ def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
     further; then steps back :data:`STEP_BACK` of the free way behind it (keeping
     :data:`MIN_CLEARANCE`), so that the first frame shows the room's length."""
     if scene.count == 0:
-        return None
+        return "no Gaussians"
     stride = -(-scene.count // SAMPLE)
     sample = _sample(scene)
     frame = horizontal_frame(up)
     grid = _occupancy(sample, frame, stride)
     occ = grid.occupied
     levels = _levels(occ)
-    if levels is None:
-        return None
+    if isinstance(levels, str):
+        return levels
     floor, ceiling, below, above, eye_k = levels
     height = ceiling - floor
+    storey = height * (1 + 2 * PLACE_PAD_UP) / occ.shape[2]  # of the box's height
+    if storey < STOREY:
+        return f"floor and ceiling span {storey:.0%} of the scene's height: storeys of an object"
     tol = max(1, int(round(KNEE * height)))
     body = occ[:, :, floor + tol + 1:min(eye_k + tol + 1, occ.shape[2])].any(axis=2)
     stand = ~body & (below >= 0) & (np.abs(below - floor) <= tol)
     sealed = _sealed(occ)
     sight = sealed[:, :, eye_k]
     if not stand.any():
-        return None
+        return "nowhere to stand on the floor"
     # keep the lens off any Gaussian at all, not only surfaces: a floater at the lens would take the focus
     touched = (grid.cover[:, :, max(eye_k - 1, 0):eye_k + 2] >= TOUCHED).any(axis=2)
     obstacles = ~stand | sight | touched
     clear = _clearance(obstacles)
     level = float(np.count_nonzero(stand & (np.abs(above - ceiling) <= LEVEL_TOLERANCE * height)))
     level /= float(np.count_nonzero(stand))
-    room = stand & (clear >= max(2.0, MIN_CLEARANCE * height))
-    if level < ROOFED or not room.any():
-        return None
+    need = max(2.0, MIN_CLEARANCE * height)
+    if level < ROOFED:
+        return f"no level ceiling (over {level:.0%} of where one can stand)"
+    if clear.max() < need:
+        return f"no room to stand ({clear.max():.0f} cells from an obstacle at most, {need:.1f} needed)"
+    room = stand & (clear >= need)
     # the clearest places to stand, each the clearest of its open space (none within another's
     # clearance), clearest first; the eye takes the first with surfaces around it (a terrace's
     # clear strip may look out at nothing)
@@ -535,7 +551,7 @@ def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
     _, met = _march(sealed, starts, _sphere(SPHERE_RAYS))
     enclosed = met.mean(axis=1) >= ENCLOSED
     if not enclosed.any():
-        return None
+        return f"no surfaces around (in {met.mean(axis=1).max():.0%} of the directions at most)"
     pick = int(np.argmax(enclosed))
     best, start, enclosure = cells[pick], starts[pick], float(met[pick].mean())
     angles = np.arange(AZIMUTHS) * 2 * math.pi / AZIMUTHS

@@ -10,7 +10,7 @@ import pytest
 from inria_folder import SCENES, TWO_PLANES
 
 from dofview.bench.primitives import Parts, add_panel
-from dofview.bench.synth import room_scene
+from dofview.bench.synth import furnished_room, room_scene
 from dofview.cli import main
 from dofview.frame import Frame
 from dofview.framing import UP_AXES, axis_vector, find_place, guess_up, overview_camera, robust_box
@@ -168,57 +168,9 @@ def turned(scene: GaussianScene, R: np.ndarray) -> GaussianScene:
 Z_UP = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # world −y (up in the 3DGS convention) onto +z
 
 
-def wall(parts: Parts, axis: int, at: float, span: dict, colour, doors=()) -> None:
-    """A wall (``add_panel``) with door openings ``doors``: (lo, hi) along its horizontal span, from
-    the floor (y = 0) up to 2.0 (y = −2.0; world y is down)."""
-    (b, (b0, b1)), (c, (c0, c1)) = sorted(span.items())
-    horizontal, vertical = (b, c) if c == 1 else (c, b)
-    h0, h1 = span[horizontal]
-    edges = [h0, *[e for d in sorted(doors) for e in d], h1]
-    for lo, hi in zip(edges[::2], edges[1::2]):  # the solid stretches between the doors
-        add_panel(parts, axis, at, {horizontal: (lo, hi), vertical: span[vertical]}, colour)
-    for lo, hi in doors:  # the lintels over them
-        add_panel(parts, axis, at, {horizontal: (lo, hi), vertical: (span[vertical][0], -2.0)}, colour)
-
-
-def place(length: float, width: float, height: float, *, doors: dict | None = None, table: bool = False,
-          floaters: int = 0, seed: int = 0) -> GaussianScene:
-    """A room of thin Gaussians (``add_panel``, 0.1 apart), y down: floor at y = 0, ceiling at
-    y = −``height``, walls at x = ±length/2 and z = ±width/2 with door openings ``doors`` {wall: [(lo,
-    hi)]} (walls "-x", "+x", "-z", "+z"). ``table``: a table in the middle (top 1.6 × 0.9 at 0.75 above
-    the floor, four legs) and four chairs (seats at 0.45, backs to 0.9) around it. ``floaters``: that many
-    small splats scattered through the room, a third of them opaque, as a capture leaves them."""
-    parts = Parts.empty()
-    hx, hz = length / 2, width / 2
-    doors = doors or {}
-    add_panel(parts, 1, 0.0, {0: (-hx, hx), 2: (-hz, hz)}, (0.55, 0.45, 0.35))  # floor
-    add_panel(parts, 1, -height, {0: (-hx, hx), 2: (-hz, hz)}, (0.9, 0.9, 0.88))  # ceiling
-    for name, axis, at, span, colour in (("-x", 0, -hx, {1: (-height, 0.0), 2: (-hz, hz)}, (0.8, 0.3, 0.3)),
-                                         ("+x", 0, hx, {1: (-height, 0.0), 2: (-hz, hz)}, (0.3, 0.7, 0.3)),
-                                         ("-z", 2, -hz, {0: (-hx, hx), 1: (-height, 0.0)}, (0.3, 0.3, 0.8)),
-                                         ("+z", 2, hz, {0: (-hx, hx), 1: (-height, 0.0)}, (0.8, 0.8, 0.3))):
-        wall(parts, axis, at, span, colour, doors.get(name, ()))
-    rng = np.random.default_rng(seed)
-    if table:
-        add_panel(parts, 1, -0.75, {0: (-0.8, 0.8), 2: (-0.45, 0.45)}, (0.4, 0.25, 0.1), 0.05)
-        legs = [(x, y, z) for x in (-0.75, 0.75) for z in (-0.4, 0.4) for y in np.arange(-0.7, 0.0, 0.05)]
-        parts.add(legs, (0.03, 0.03, 0.03), (0.3, 0.2, 0.1), 0.95)
-        for cx, cz, facing in ((-1.2, 0.0, 0), (1.2, 0.0, 0), (0.0, -0.8, 2), (0.0, 0.8, 2)):
-            seat = {0: (cx - 0.22, cx + 0.22), 2: (cz - 0.22, cz + 0.22)}
-            add_panel(parts, 1, -0.45, seat, (0.2, 0.4, 0.6), 0.05)
-            back = 0.25 * np.sign(cx if facing == 0 else cz)
-            span = {2 - facing: seat[2 - facing], 1: (-0.9, -0.45)}
-            add_panel(parts, facing, (cx if facing == 0 else cz) + back, span, (0.2, 0.4, 0.6), 0.05)
-    if floaters:
-        means = rng.uniform((-hx, -height, -hz), (hx, 0.0, hz), (floaters, 3))
-        opacity = np.where(np.arange(floaters) % 3 == 0, 0.9, rng.uniform(0.05, 0.3, floaters))
-        parts.add(means, rng.uniform(0.01, 0.04, (floaters, 1)) * np.ones(3), rng.uniform(0, 1, (floaters, 3)), opacity)
-    return parts.build("srgb", "place")
-
-
 def free_way(eye: np.ndarray, direction: np.ndarray, length: float, width: float) -> float:
-    """Distance from ``eye`` (3,) along the horizontal ``direction`` (3,) to the walls of
-    :func:`place` (x = ±length/2, z = ±width/2)."""
+    """Distance from ``eye`` (3,) along the horizontal ``direction`` (3,) to the walls of a
+    :func:`furnished_room` (x = ±length/2, z = ±width/2)."""
     ts = [(np.sign(direction[a]) * half - eye[a]) / direction[a]
           for a, half in ((0, length / 2), (2, width / 2)) if abs(direction[a]) > 1e-12]
     return float(min(ts))
@@ -226,7 +178,7 @@ def free_way(eye: np.ndarray, direction: np.ndarray, length: float, width: float
 
 def check_inside(scene: GaussianScene, up: np.ndarray, length: float, width: float, height: float,
                  world: np.ndarray = np.eye(3)) -> tuple:
-    """The camera :func:`overview_camera` puts in a :func:`place` built with these sizes and turned by
+    """The camera :func:`overview_camera` puts in a :func:`furnished_room` of these sizes turned by
     ``world`` (3, 3): inside, at eye height, level, upright, looking along the long way towards its
     far end, and no Gaussian at the lens. Returns the camera and its eye in the room's own frame."""
     spot = find_place(scene, up)
@@ -253,7 +205,7 @@ def test_a_room_with_a_table_in_its_middle_is_seen_from_inside():
     not in them, at eye height, and looks down the room's length; the first frame is sharp on the far
     wall, not on a floater (a third of 300 are opaque)."""
     length, width, height = 6.0, 4.0, 2.6
-    room = place(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300)
+    room = furnished_room(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300)
     guess = guess_up(room)
     assert guess.label == "-y" and "a room" in guess.reason, guess.reason
     cam, eye = check_inside(room, guess.vector, length, width, height)
@@ -272,7 +224,7 @@ def test_the_eye_keeps_off_a_floater():
     """Opaque specks where the eye would stand (a capture leaves floaters on its path), too few to make
     a surface: the eye stands elsewhere, with no Gaussian at the lens."""
     length, width, height = 6.0, 4.0, 2.6
-    room = place(length, width, height, table=True)
+    room = furnished_room(length, width, height, table=True)
     up = axis_vector("-y")
     spot = overview_camera(room, *SIZE, up=up).centre
     rng = np.random.default_rng(2)
@@ -293,7 +245,7 @@ def concat(a: GaussianScene, b: GaussianScene) -> GaussianScene:
 def test_a_corridor_is_seen_along_its_length():
     """8 × 1.6, 2.5 high, doorways on both sides and at one end: the eye stands in it and looks down it."""
     length, width, height = 8.0, 1.6, 2.5
-    corridor = place(length, width, height, doors={"-z": [(-2.0, -1.1), (1.5, 2.4)], "+z": [(0.0, 0.9)],
+    corridor = furnished_room(length, width, height, doors={"-z": [(-2.0, -1.1), (1.5, 2.4)], "+z": [(0.0, 0.9)],
                                                    "+x": [(-0.45, 0.45)]}, floaters=100, seed=1)
     guess = guess_up(corridor)
     assert guess.label == "-y", guess.reason
@@ -304,7 +256,7 @@ def test_a_z_up_room_is_seen_upright_from_inside():
     """The furnished room turned so that its up is +z (a Blender or PlayCanvas export): the guess
     follows it, and the camera is inside, upright in +z."""
     length, width, height = 6.0, 4.0, 2.6
-    room = turned(place(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300), Z_UP)
+    room = turned(furnished_room(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300), Z_UP)
     guess = guess_up(room)
     assert guess.label == "+z", guess.reason
     check_inside(room, guess.vector, length, width, height, world=Z_UP)
