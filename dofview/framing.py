@@ -165,11 +165,12 @@ def guess_up(scene: GaussianScene) -> UpGuess:
     if scene.count == 0:
         return UpGuess("-y", "empty scene: the 3DGS convention")
     sample = _sample(scene)
-    room = _room(scene, sample)
+    ends = _end_shares(sample)
+    room = _room(scene, ends)
     if room is not None:
         return room
     scene = sample
-    ground = _ground(scene)
+    ground = _ground(scene, ends)
     if ground is not None:
         return ground
     lo, hi = robust_box(scene)
@@ -183,10 +184,9 @@ def guess_up(scene: GaussianScene) -> UpGuess:
     return UpGuess("-y", "no ground and no tall axis: the 3DGS convention")
 
 
-def _room(scene: GaussianScene, sample: GaussianScene) -> UpGuess | None:
-    """The up of a room: flat planes at both ends of an axis of ``sample`` (:func:`_sample` of
-    ``scene``) and a place between them in ``scene`` (step 0 of :func:`guess_up`), or None."""
-    ends = _end_shares(sample)
+def _room(scene: GaussianScene, ends: dict[str, float] | None) -> UpGuess | None:
+    """The up of a room: flat planes at both ends of an axis (``ends``, :func:`_end_shares` of the
+    scene's sample) and a place between them in ``scene`` (step 0 of :func:`guess_up`), or None."""
     if ends is None:
         return None
     pairs = sorted((a for a in "xyz" if min(ends["+" + a], ends["-" + a]) >= ROOM_PLANE_SHARE),
@@ -233,19 +233,19 @@ def _flat_mass(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray]:
     return scene.opacities.astype(np.float64) * s_mid * s_max * flat, normal
 
 
-def _ground(scene: GaussianScene) -> UpGuess | None:
-    """The up direction a ground of flat Gaussians shows (step 1 of :func:`guess_up`), or None."""
-    scores = _end_shares(scene)
+def _ground(scene: GaussianScene, scores: dict[str, float] | None) -> UpGuess | None:
+    """The up direction a ground of flat Gaussians shows (step 1 of :func:`guess_up`; ``scores``:
+    :func:`_end_shares` of ``scene``), or None."""
     if scores is None:
         return None
-    mass, normal = _flat_mass(scene)
-    lo, hi = robust_box(scene)
     weighted = {k: v * (CONVENTION_BONUS if k == "-y" else 1.0) for k, v in scores.items()}
     best = max(weighted, key=weighted.get)
     runner = max((k for k in scores if k != best), key=weighted.get)
     if scores[best] < MIN_GROUND_SHARE or weighted[best] < DOMINANCE * weighted[runner]:
         return None
     side = ("high " if best[0] == "-" else "low ") + best[1]
+    mass, normal = _flat_mass(scene)
+    lo, hi = robust_box(scene)
     a = "xyz".index(best[1])
     t = (scene.means[:, a] - lo[a]) / max(hi[a] - lo[a], 1e-12)
     face = (t < GROUND_BAND if best[0] == "+" else t > 1.0 - GROUND_BAND)
@@ -363,14 +363,16 @@ def _occupancy(scene: GaussianScene, frame: np.ndarray, stride: int) -> _Grid:
     opacity = scene.opacities.astype(np.float64)
     face = opacity * 2 * math.pi * s1 * s2 / cell**2  # cells' worth of opaque cross-section
     big = 2 * s1 > cell
-    points, weights = [q], [np.minimum(np.where(big, face / 9, face), opacity)]
-    for u, v in ((u, v) for u in (-1, 0, 1) for v in (-1, 0, 1) if (u, v) != (0, 0)):
-        points.append(q[big] + u * s1[big, None] * a1[big] + v * s2[big, None] * a2[big])
-        weights.append(np.minimum(face[big] / 9, opacity[big]))
-    idx = np.floor((np.concatenate(points) - lo) / cell).astype(np.int64)
+    uv = np.array([(u, v) for u in (-1.0, 0.0, 1.0) for v in (-1.0, 0.0, 1.0)])  # (9, 2) steps of σ
+    spread = (q[big, None, :] + uv[None, :, :1] * (s1[big, None] * a1[big])[:, None, :]
+              + uv[None, :, 1:] * (s2[big, None] * a2[big])[:, None, :])  # (B, 9, 3)
+    points = np.concatenate([q[~big], spread.reshape(-1, 3)])
+    weights = np.concatenate([np.minimum(face[~big], opacity[~big]),
+                              np.repeat(np.minimum(face[big] / 9, opacity[big]), 9)])
+    idx = np.floor((points - lo) / cell).astype(np.int64)
     keep = np.all((idx >= 0) & (idx < dims), axis=1)
     flat = np.ravel_multi_index(tuple(idx[keep].T), tuple(dims))
-    cover = np.bincount(flat, np.concatenate(weights)[keep] * stride, minlength=int(np.prod(dims)))
+    cover = np.bincount(flat, weights[keep] * stride, minlength=int(np.prod(dims)))
     return _Grid(cover.reshape(tuple(dims)), lo, cell, frame)
 
 
