@@ -494,10 +494,11 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     has a floor under its free space and a ceiling over it (:func:`_levels`: an object has no ceiling
     over the space around it), the two spanning most of the scene's height (:data:`STOREY`: not two
     layers inside an object), the ceiling level over most of where one can stand (a hollow shell's
-    dome is not), somewhere one can stand (a column whose first surface below the eye is the floor, nothing
-    from knee to above the eye: not on a table, not in a wall), at least :data:`MIN_CLEARANCE` of the
-    room's height from any obstacle, and surfaces around it: at least :data:`ENCLOSED` of the
-    directions from the eye meet one (a doorway or a window lets a few through).
+    dome is not), somewhere one can stand (a column whose first surface below the eye is the floor,
+    nothing from knee to above the eye: not on a table, not in a wall) at least
+    :data:`MIN_CLEARANCE` of the room's height from any obstacle, and surfaces around it: at least
+    :data:`ENCLOSED` of the directions from the eye meet one (a doorway or a window lets a few
+    through). The answer comes from the first test that fails, in that order.
 
     The eye stands where the floor is clearest (furthest from walls, furniture and floaters; the
     first of the :data:`CANDIDATES` clearest open spaces with surfaces around it), at
@@ -523,10 +524,10 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     tol = max(1, int(round(KNEE * height)))
     body = occ[:, :, floor + tol + 1:min(eye_k + tol + 1, occ.shape[2])].any(axis=2)
     stand = ~body & (below >= 0) & (np.abs(below - floor) <= tol)
-    sealed = _sealed(occ)
-    sight = sealed[:, :, eye_k]
     if not stand.any():
         return "nowhere to stand on the floor"
+    sealed = _sealed(occ)
+    sight = sealed[:, :, eye_k]
     # keep the lens off any Gaussian at all, not only surfaces: a floater at the lens would take the focus
     touched = (grid.cover[:, :, max(eye_k - 1, 0):eye_k + 2] >= TOUCHED).any(axis=2)
     obstacles = ~stand | sight | touched

@@ -39,9 +39,9 @@ def test_the_files_are_cameras_files_with_a_focus_and_a_subject():
 
 
 @pytest.mark.parametrize("scene, place", [
-    ("../shared/scenes/corridor.compressed.ply", "corridor"),
+    ("/data/scenes/corridor.compressed.ply", "corridor"),
     ("/data/kitchen_balcony.compressed.ply", "kitchen_balcony"),
-    ("../shared/scenes/showroom/lod-meta.json", "showroom"),
+    ("/data/scenes/showroom/lod-meta.json", "showroom"),
     ("/tmp/showroom_l1.ply", "showroom"),  # a level decoded by splat-transform
     ("showroom", "showroom"),
     ("tests/data/burger.ply", None),
