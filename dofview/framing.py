@@ -3,9 +3,10 @@ a set of training views.
 
 Without cameras a scene is framed from its opacity-weighted percentile box (floaters and
 near-transparent haze do not shrink the object to a dot), looked at slightly from above along the
-world up that :func:`guess_up` finds; a scene that surrounds its centre (a room) is seen from
-inside. With cameras the orbit pivot is the point nearest to all their optical axes and world up
-is their mean up.
+world up that :func:`guess_up` finds. A place (a room, a corridor, a flat: a floor, a level ceiling
+over it, surfaces around; :func:`find_place`) is seen from inside instead, from where a person would
+stand, at eye height, along its long way. With cameras the orbit pivot is the point nearest to all
+their optical axes and world up is their mean up.
 """
 
 from __future__ import annotations
@@ -23,19 +24,36 @@ UP_AXES: tuple[str, ...] = ("-y", "+z", "+y", "-z", "+x", "-x")
 """World up directions ``--up`` takes, in the order the viewer's key cycles them. −y first: the
 3DGS/COLMAP convention (OpenCV camera axes, y down), which PLY, SuperSplat and SPZ-read-as-PLY share."""
 
-CONVENTION_BONUS = 1.5  # −y's ground evidence counts this much more (the convention breaks near-ties)
+CONVENTION_BONUS = 1.5  # −y's ground and y's room planes count this much more (the convention breaks near-ties)
 DOMINANCE = 1.5  # a ground must be this many times stronger than the next side's
 ELONGATION = 1.5  # without a ground, an axis this many times longer than the others is up (a standing figure)
 FLAT_RATIO = 0.3  # a Gaussian is flat when its smallest scale is below this fraction of the middle one
 GROUND_BAND = 0.25  # the ground is sought in this fraction of the box along each direction
 MIN_GROUND_SHARE = 0.2  # below this share of the flat mass there is no ground to speak of
+ROOM_PLANE_SHARE = 0.1  # a room's floor and ceiling each hold at least this share of the flat mass
 RIM = 0.1  # a face's middle is its footprint less this fraction of it on every side
 CARRIED_SHARE = 0.01  # a face with less of the rest over its middle (and not under its centre) carries nothing
-WALL_SHARE = 0.05  # a wall holds at least this share of the flat mass
-WALL_THICKNESS = 0.05  # and its middle 80 % lies within this fraction of the box's extent
-CORE = 0.25  # the middle of the box: this fraction of its half-extent around its centre
-EMPTY_CORE = 0.01  # a middle holding less than this share of the scene's weight is empty
-INSIDE_BACK = 0.5  # seen from inside, the camera stands this fraction of the half-length behind the centre
+PLACE_GRID = 128  # a place's grid has this many cells along its box's longer horizontal side (or its height)
+PLACE_PAD = 0.1  # and reaches this fraction of the box beyond it on every side,
+PLACE_PAD_UP = 0.5  # and this fraction of its height above and below it
+OCCUPIED = 0.5  # a cell holds a surface when its Gaussians' opaque cross-section covers this share of its face
+TOUCHED = 0.05  # and something (a floater) when this share; the eye keeps clear of both
+EYE_HEIGHT = 0.55  # the eye stands this fraction of the way from floor to ceiling (1.4 m in a 2.6 m room)
+LEVEL_SPAN = 0.15  # the floor is sought this fraction of the box height above the lowest surfaces seen
+ROOFED = 0.5  # a place has a ceiling over at least this share of its free floor, level over this share
+# of where one can stand (a dome, an object's top, the sky are not)
+STOREY = 0.6  # a place's floor and ceiling span at least this share of its box's height (0.9–1 in rooms)
+KNEE = 0.1  # of the room's height: the floor's tolerance, and where the space a body needs begins
+LEVEL_TOLERANCE = 0.2  # of the room's height: a ceiling this near its level counts as level (coffers,
+# a dropped ceiling, rooms of a flat a little higher or lower; a dome's sides come down further)
+MIN_CLEARANCE = 0.1  # of the room's height: the eye's least distance to a wall or furniture (and 2 cells)
+ENCLOSED = 0.6  # a place has surfaces in at least this share of the directions from the eye (doorways,
+# windows and an open side let the others out: 0.7 in the shared corridor, kitchen and showroom)
+SPHERE_RAYS = 256  # directions sampled over the sphere for that share
+AZIMUTHS = 72  # horizontal rays from the eye (5° apart) for what it sees at eye height
+CANDIDATES = 16  # the clearest open spaces tried, in turn, for surfaces around them
+FAN = math.radians(30.0)  # the side looked along is the one with the longer mean reach within this of the axis
+STEP_BACK = 0.5  # the eye steps back this share of the free way behind it
 ELEVATION_DEG = 20.0  # the overview camera looks down on the scene by this much
 SAMPLE = 200_000  # statistics are taken over at most this many Gaussians (an even stride through the file)
 FILL = 0.8  # the box's corners fill this fraction of the frame (the 2–98 % box leaves tails out)
@@ -122,8 +140,16 @@ def nearest_axis(up: np.ndarray) -> str:
 
 
 def guess_up(scene: GaussianScene) -> UpGuess:
-    """Guess which world axis is up: from the scene's ground, else its tall axis, else the convention.
+    """Guess which world axis is up: a room's floor and ceiling, else the scene's ground, else its
+    tall axis, else the convention.
 
+    0. Room. A room, a corridor, a flat has flat planes at both ends of its up axis: the floor and
+       the ceiling, each ≥ :data:`ROOM_PLANE_SHARE` of the flat mass facing along the axis in its
+       outer quarter (corridor walls can match them: y's pair counts ×1.5, the convention), and
+       :func:`find_place` finds somewhere to stand between them. Which plane is the floor the
+       geometry does not tell reliably (a tiled floor may hold a quarter of a white ceiling's flat
+       mass, and both have things under or over them), so the sign is the convention's: −y
+       (3DGS/COLMAP), +z (Blender, z-up captures); along x, the plane with more flat mass is the floor.
     1. Ground. Trained scenes rest on something: a floor, a table, a ground plane, the flat base of
        an object. Those surfaces are fitted by flat Gaussians whose normal (the axis of the smallest
        scale) is along up, and they lie at the bottom of the scene. For each of the six axis
@@ -138,8 +164,13 @@ def guess_up(scene: GaussianScene) -> UpGuess:
     """
     if scene.count == 0:
         return UpGuess("-y", "empty scene: the 3DGS convention")
-    scene = _sample(scene)
-    ground = _ground(scene)
+    sample = _sample(scene)
+    ends = _end_shares(sample)
+    room = _room(scene, ends)
+    if room is not None:
+        return room
+    scene = sample
+    ground = _ground(scene, ends)
     if ground is not None:
         return ground
     lo, hi = robust_box(scene)
@@ -151,6 +182,42 @@ def guess_up(scene: GaussianScene) -> UpGuess:
         return UpGuess(label, f"no ground; the scene stands {size[a] / max(others, 1e-12):.1f}× taller along "
                               f"{'xyz'[a]} than across (sign by convention)")
     return UpGuess("-y", "no ground and no tall axis: the 3DGS convention")
+
+
+def _room(scene: GaussianScene, ends: dict[str, float] | None) -> UpGuess | None:
+    """The up of a room: flat planes at both ends of an axis (``ends``, :func:`_end_shares` of the
+    scene's sample) and a place between them in ``scene`` (step 0 of :func:`guess_up`), or None."""
+    if ends is None:
+        return None
+    pairs = sorted((a for a in "xyz" if min(ends["+" + a], ends["-" + a]) >= ROOM_PLANE_SHARE),
+                   key=lambda a: -min(ends["+" + a], ends["-" + a]) * (CONVENTION_BONUS if a == "y" else 1.0))
+    for a in pairs:
+        low, high = ends["+" + a], ends["-" + a]
+        label = {"y": "-y", "z": "+z"}.get(a, "+x" if low >= high else "-x")
+        place = find_place(scene, axis_vector(label))
+        if place is not None:
+            return UpGuess(label, f"a room: flat planes at both ends of {a} ({low:.0%} and {high:.0%} of the flat "
+                                  f"mass), a level ceiling over {place.roofed:.0%} of the free floor; the floor by "
+                                  "convention")
+    return None
+
+
+def _end_shares(scene: GaussianScene) -> dict[str, float] | None:
+    """For each label of :data:`UP_AXES`, the flat mass facing along its axis in the outer
+    :data:`GROUND_BAND` of the box at the end a ground would be for that up ("+y": the low-y end), as
+    a share of all flat mass; None without flat Gaussians."""
+    mass, normal = _flat_mass(scene)
+    total = float(mass.sum())
+    if total <= 0:
+        return None
+    lo, hi = robust_box(scene)
+    shares = {}
+    for label in UP_AXES:
+        a = "xyz".index(label[1])
+        t = (scene.means[:, a] - lo[a]) / max(hi[a] - lo[a], 1e-12)  # 0 at the low end of the box
+        bottom = t < GROUND_BAND if label[0] == "+" else t > 1.0 - GROUND_BAND
+        shares[label] = float((mass * normal[:, a] ** 2 * bottom).sum()) / total
+    return shares
 
 
 def _flat_mass(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray]:
@@ -166,25 +233,19 @@ def _flat_mass(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray]:
     return scene.opacities.astype(np.float64) * s_mid * s_max * flat, normal
 
 
-def _ground(scene: GaussianScene) -> UpGuess | None:
-    """The up direction a ground of flat Gaussians shows (step 1 of :func:`guess_up`), or None."""
-    mass, normal = _flat_mass(scene)
-    total = float(mass.sum())
-    if total <= 0:
+def _ground(scene: GaussianScene, scores: dict[str, float] | None) -> UpGuess | None:
+    """The up direction a ground of flat Gaussians shows (step 1 of :func:`guess_up`; ``scores``:
+    :func:`_end_shares` of ``scene``), or None."""
+    if scores is None:
         return None
-    lo, hi = robust_box(scene)
-    scores = {}
-    for label in UP_AXES:
-        a = "xyz".index(label[1])
-        t = (scene.means[:, a] - lo[a]) / max(hi[a] - lo[a], 1e-12)  # 0 at the low end of the box
-        bottom = t < GROUND_BAND if label[0] == "+" else t > 1.0 - GROUND_BAND
-        scores[label] = float((mass * normal[:, a] ** 2 * bottom).sum()) / total
     weighted = {k: v * (CONVENTION_BONUS if k == "-y" else 1.0) for k, v in scores.items()}
     best = max(weighted, key=weighted.get)
     runner = max((k for k in scores if k != best), key=weighted.get)
     if scores[best] < MIN_GROUND_SHARE or weighted[best] < DOMINANCE * weighted[runner]:
         return None
     side = ("high " if best[0] == "-" else "low ") + best[1]
+    mass, normal = _flat_mass(scene)
+    lo, hi = robust_box(scene)
     a = "xyz".index(best[1])
     t = (scene.means[:, a] - lo[a]) / max(hi[a] - lo[a], 1e-12)
     face = (t < GROUND_BAND if best[0] == "+" else t > 1.0 - GROUND_BAND)
@@ -217,40 +278,308 @@ def _carried(scene: GaussianScene, axis: int, face_mass: np.ndarray, rest: np.nd
     return float(w[over].sum() / w.sum()), centred
 
 
-def walled_axes(scene: GaussianScene, up: np.ndarray) -> list[int]:
-    """The horizontal world axes (of ``up`` (3,)) with a wall at both ends, and an empty middle:
-    the scene surrounds its robust centre (a room, a street between façades), so it is seen from
-    inside. A wall is a plane of flat Gaussians facing along the axis in the outer :data:`GROUND_BAND`
-    of the box at that end, holding ≥ :data:`WALL_SHARE` of the flat mass, its middle 80 % within
-    :data:`WALL_THICKNESS` of the box's extent (a curved shell, a burger's side, is no wall). The
-    middle is empty when < :data:`EMPTY_CORE` of the weight (:func:`framing_weights`) is within
-    :data:`CORE` of the half-extent around the centre (an object fills its own middle)."""
-    scene = _sample(scene)
-    if scene.count == 0:
-        return []
-    lo, hi = robust_box(scene)
-    size = np.maximum(hi - lo, 1e-12)
+@dataclass(frozen=True)
+class Place:
+    """A scene seen from inside (a room, a corridor, a flat): where a person would stand in it.
+
+    Heights are along the world up given to :func:`find_place`, in scene units.
+
+    Attributes:
+        eye: (3,) float64 world position of the eye, :data:`EYE_HEIGHT` of the way from floor to ceiling.
+        look: (3,) float64 unit horizontal direction looked along.
+        floor, ceiling: heights of the floor and the ceiling over the free space.
+        enclosure: share of the directions from the eye (a sphere of them) that meet a surface.
+        roofed: share of the floor one can stand on that has the ceiling (within
+            :data:`LEVEL_TOLERANCE` of the room's height of its level) over it.
+        reason: the same, in words.
+    """
+
+    eye: np.ndarray
+    look: np.ndarray
+    floor: float
+    ceiling: float
+    enclosure: float
+    roofed: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """Cubic cells over a scene's box in a frame whose third axis is up: ``cover`` (X, Y, Z) float64,
+    the share of each cell's cross-section that its Gaussians make opaque (may exceed 1); ``origin``
+    (3,) the low corner in frame coordinates (``frame`` (3, 3), rows e1, e2, up), ``cell`` the side."""
+
+    cover: np.ndarray
+    origin: np.ndarray
+    cell: float
+    frame: np.ndarray
+
+    @property
+    def occupied(self) -> np.ndarray:
+        """(X, Y, Z) bool: the cells that hold a surface (:data:`OCCUPIED`)."""
+        return self.cover >= OCCUPIED
+
+    def world(self, ij: np.ndarray, height: float) -> np.ndarray:
+        """(3,) world point over the centre of column ``ij`` (2,) at ``height``."""
+        p = self.origin[:2] + (np.asarray(ij, np.float64) + 0.5) * self.cell
+        return p[0] * self.frame[0] + p[1] * self.frame[1] + height * self.frame[2]
+
+
+def horizontal_frame(up: np.ndarray) -> np.ndarray:
+    """(3, 3) float64 orthonormal rows (e1, e2, up): e1 is the world axis furthest from ``up`` (3,)
+    made horizontal, e2 = up × e1, so an axis-aligned up keeps the other two world axes."""
+    up = np.asarray(up, np.float64) / np.linalg.norm(up)
+    ref = min(np.eye(3), key=lambda v: abs(float(v @ up)))
+    e1 = ref - (ref @ up) * up
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(up, e1), up])
+
+
+def _occupancy(scene: GaussianScene, frame: np.ndarray, stride: int) -> _Grid:
+    """Where the surfaces are: each Gaussian's opacity-weighted cross-section (opacity × 2π σ₁σ₂ of
+    its two largest axes, the integral of its α) spread over the cells it spans (a 3 × 3 set of
+    points at 0, ±σ along those axes when it is larger than a cell), at most its opacity per point,
+    summed per cell and divided by the cell's face; a sampled scene counts each Gaussian ``stride``
+    times. The grid covers the weighted 2–98 % box (:func:`framing_weights`) in ``frame`` plus
+    :data:`PLACE_PAD` of it on every side, :data:`PLACE_GRID` cells along its longer horizontal side."""
+    q = scene.means.astype(np.float64) @ frame.T  # (N, 3): e1, e2, height
     w = framing_weights(scene)
-    core = np.all(np.abs(scene.means - (lo + hi) / 2) < CORE * size / 2, axis=1)
-    if w.sum() <= 0 or w[core].sum() >= EMPTY_CORE * w.sum():
-        return []
-    mass, normal = _flat_mass(scene)
-    total = float(mass.sum())
-    walled = []
-    for a in range(3):
-        if total <= 0 or abs(float(up[a])) > 0.5:  # not a horizontal axis
-            continue
-        t = (scene.means[:, a] - lo[a]) / size[a]
-        for end in (t < GROUND_BAND, t > 1.0 - GROUND_BAND):
-            m = mass * normal[:, a] ** 2 * end
-            if m.sum() < WALL_SHARE * total:
+    box = np.array([weighted_quantiles(q[:, a], w, [0.02, 0.98]) for a in range(3)])  # (3, 2)
+    pad = PLACE_PAD * (box[:, 1] - box[:, 0])
+    pad[2] = PLACE_PAD_UP * (box[2, 1] - box[2, 0])  # a double-height ceiling is in the 2 % cut off
+    lo, hi = box[:, 0] - pad, box[:, 1] + pad
+    scales = scene.scales.astype(np.float64)
+    # cells no smaller than a typical splat's footprint (2σ of its largest axis): finer, the
+    # surfaces of a real capture break up into holes between their Gaussians
+    cell = max(float(np.max(hi[:2] - lo[:2])) / PLACE_GRID, float(hi[2] - lo[2]) / PLACE_GRID,
+               2.0 * float(np.median(scales.max(axis=1))), 1e-12)
+    dims = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1)
+    order = np.argsort(scales, axis=1)
+    s1 = np.take_along_axis(scales, order[:, 2:], 1)[:, 0]
+    s2 = np.take_along_axis(scales, order[:, 1:2], 1)[:, 0]
+    rot = scene.rotation_matrices()
+    a1 = np.take_along_axis(rot, order[:, None, 2:], 2)[:, :, 0] @ frame.T  # (N, 3) largest axis, in frame
+    a2 = np.take_along_axis(rot, order[:, None, 1:2], 2)[:, :, 0] @ frame.T
+    opacity = scene.opacities.astype(np.float64)
+    face = opacity * 2 * math.pi * s1 * s2 / cell**2  # cells' worth of opaque cross-section
+    big = 2 * s1 > cell
+    uv = np.array([(u, v) for u in (-1.0, 0.0, 1.0) for v in (-1.0, 0.0, 1.0)])  # (9, 2) steps of σ
+    spread = (q[big, None, :] + uv[None, :, :1] * (s1[big, None] * a1[big])[:, None, :]
+              + uv[None, :, 1:] * (s2[big, None] * a2[big])[:, None, :])  # (B, 9, 3)
+    points = np.concatenate([q[~big], spread.reshape(-1, 3)])
+    weights = np.concatenate([np.minimum(face[~big], opacity[~big]),
+                              np.repeat(np.minimum(face[big] / 9, opacity[big]), 9)])
+    idx = np.floor((points - lo) / cell).astype(np.int64)
+    keep = np.all((idx >= 0) & (idx < dims), axis=1)
+    flat = np.ravel_multi_index(tuple(idx[keep].T), tuple(dims))
+    cover = np.bincount(flat, weights[keep] * stride, minlength=int(np.prod(dims)))
+    return _Grid(cover.reshape(tuple(dims)), lo, cell, frame)
+
+
+def _levels(occ: np.ndarray) -> tuple[int, int, np.ndarray, np.ndarray, int] | str:
+    """Floor and ceiling cells (k indices along up) of the occupied cells ``occ`` (X, Y, Z) bool seen
+    from the free space, per column the first surface below and above the eye (−1 and Z where
+    none), and the eye's layer; or why there are none, in words (no ceiling over most of it).
+
+    From a first eye level at :data:`EYE_HEIGHT` of the box, each column free there looks down and
+    up. The floor is the commonest first surface below in the lowest part of those (from the 15th
+    percentile up :data:`LEVEL_SPAN` of the box height: furniture tops stand higher, a glossy
+    floor's reflections lie lower); the ceiling likewise from the 85th percentile down, where at
+    least :data:`ROOFED` of the columns have one. Once more from the eye those levels give."""
+    nz = occ.shape[2]
+    k = np.arange(nz)
+    span = max(1, int(LEVEL_SPAN * nz / (1 + 2 * PLACE_PAD_UP)))
+    eye = int(EYE_HEIGHT * nz)
+    for _ in range(2):
+        below = np.where(occ[:, :, :eye], k[:eye], -1).max(axis=2)
+        above = np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2)
+        free = ~occ[:, :, eye] & (below >= 0)
+        roofed = free & (above < nz)
+        if not free.any():
+            return "no floor under free space"
+        if roofed.sum() < ROOFED * free.sum():
+            return f"no ceiling over the free floor (over {roofed.sum() / free.sum():.0%} of it)"
+        hist = np.bincount(below[free], minlength=nz)
+        q15 = int(np.searchsorted(np.cumsum(hist), 0.15 * hist.sum()))
+        floor = q15 + int(np.argmax(hist[q15:q15 + span + 1]))
+        hist = np.bincount(above[roofed], minlength=nz + 1)
+        q85 = int(np.searchsorted(np.cumsum(hist), 0.85 * hist.sum()))
+        ceiling = max(q85 - span, 0) + int(np.argmax(hist[max(q85 - span, 0):q85 + 1]))
+        if ceiling - floor < 4:
+            return "floor and ceiling less than 4 cells apart"
+        eye = int(round(floor + EYE_HEIGHT * (ceiling - floor)))
+    below = np.where(occ[:, :, :eye], k[:eye], -1).max(axis=2)
+    above = np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2)
+    return floor, ceiling, below, above, eye
+
+
+def _clearance(blocked: np.ndarray) -> np.ndarray:
+    """(X, Y) float64: each cell's distance in cells (alternate 8- and 4-neighbour steps) to the
+    nearest ``blocked`` (X, Y) cell or the grid's edge."""
+    dist = np.zeros(blocked.shape)
+    reached = blocked.copy()
+    reached[[0, -1], :] = reached[:, [0, -1]] = True
+    steps = 0
+    while not reached.all():
+        steps += 1
+        grown = reached.copy()
+        grown[1:] |= reached[:-1]
+        grown[:-1] |= reached[1:]
+        grown[:, 1:] |= grown[:, :-1] if steps % 2 else reached[:, :-1]  # 8- then 4-neighbour steps:
+        grown[:, :-1] |= grown[:, 1:] if steps % 2 else reached[:, 1:]  # an octagon, near a circle
+        dist[grown & ~reached] = steps
+        reached = grown
+    return dist
+
+
+def _march(hit: np.ndarray, starts: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays through a boolean grid ``hit`` (2-D or 3-D) from each of ``starts`` (M, D) in cell units
+    along each unit direction of ``dirs`` (K, D), in half-cell steps: (M, K) distances in cells to the
+    first ``hit`` cell, or to where the ray leaves the grid, and (M, K) bool whether it met one."""
+    dims = np.array(hit.shape)
+    dist = np.zeros((len(starts), len(dirs)))
+    met = np.zeros(dist.shape, bool)
+    going = np.ones(dist.shape, bool)
+    for n in range(1, int(2 * np.linalg.norm(dims)) + 2):
+        cells = np.floor(starts[:, None, :] + 0.5 * n * dirs[None, :, :]).astype(np.int64)
+        inside = np.all((cells >= 0) & (cells < dims), axis=2)
+        dist[going & ~inside] = 0.5 * n
+        going &= inside
+        now = going.copy()
+        now[going] = hit[tuple(cells[going].T)]
+        dist[now] = 0.5 * n
+        met |= now
+        going &= ~now
+        if not going.any():
+            break
+    return dist, met
+
+
+def _sealed(occupied: np.ndarray) -> np.ndarray:
+    """``occupied`` (X, Y, Z) grown by one cell along each axis: a ray in half-cell steps then
+    cannot slip between two surface cells that touch at a corner, nor through a one-cell hole in a
+    wall between a capture's Gaussians."""
+    sealed = occupied.copy()
+    for axis in range(3):
+        grown = sealed.copy()
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        grown[tuple(hi)] |= sealed[tuple(lo)]
+        grown[tuple(lo)] |= sealed[tuple(hi)]
+        sealed = grown
+    return sealed
+
+
+def _sphere(n: int) -> np.ndarray:
+    """(n, 3) unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    r = np.sqrt(1 - z**2)
+    t = math.pi * (1 + math.sqrt(5)) * i
+    return np.stack([r * np.cos(t), r * np.sin(t), z], axis=1)
+
+
+def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
+    """:func:`judge_place`'s place, or None for an object."""
+    place = judge_place(scene, up)
+    return place if isinstance(place, Place) else None
+
+
+def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
+    """Where to stand in a scene that is a place (a room, a corridor, a flat), or why it is an object,
+    in words.
+
+    The scene's surfaces are voxelised in cubes (:func:`_occupancy`, up along ``up`` (3,)). A place
+    has a floor under its free space and a ceiling over it (:func:`_levels`: an object has no ceiling
+    over the space around it), the two spanning most of the scene's height (:data:`STOREY`: not two
+    layers inside an object), the ceiling level over most of where one can stand (a hollow shell's
+    dome is not), somewhere one can stand (a column whose first surface below the eye is the floor,
+    nothing from knee to above the eye: not on a table, not in a wall) at least
+    :data:`MIN_CLEARANCE` of the room's height from any obstacle, and surfaces around it: at least
+    :data:`ENCLOSED` of the directions from the eye meet one (a doorway or a window lets a few
+    through). The answer comes from the first test that fails, in that order.
+
+    The eye stands where the floor is clearest (furthest from walls, furniture and floaters; the
+    first of the :data:`CANDIDATES` clearest open spaces with surfaces around it), at
+    :data:`EYE_HEIGHT` of the floor-to-ceiling height, looking level along the principal axis of
+    what it sees at that height (its isovist: the room's long way), towards the side that reaches
+    further; then steps back :data:`STEP_BACK` of the free way behind it (keeping
+    :data:`MIN_CLEARANCE`), so that the first frame shows the room's length."""
+    if scene.count == 0:
+        return "no Gaussians"
+    stride = -(-scene.count // SAMPLE)
+    sample = _sample(scene)
+    frame = horizontal_frame(up)
+    grid = _occupancy(sample, frame, stride)
+    occ = grid.occupied
+    levels = _levels(occ)
+    if isinstance(levels, str):
+        return levels
+    floor, ceiling, below, above, eye_k = levels
+    height = ceiling - floor
+    storey = height * (1 + 2 * PLACE_PAD_UP) / occ.shape[2]  # of the box's height
+    if storey < STOREY:
+        return f"floor and ceiling span {storey:.0%} of the scene's height: storeys of an object"
+    tol = max(1, int(round(KNEE * height)))
+    body = occ[:, :, floor + tol + 1:min(eye_k + tol + 1, occ.shape[2])].any(axis=2)
+    stand = ~body & (below >= 0) & (np.abs(below - floor) <= tol)
+    if not stand.any():
+        return "nowhere to stand on the floor"
+    sealed = _sealed(occ)
+    sight = sealed[:, :, eye_k]
+    # keep the lens off any Gaussian at all, not only surfaces: a floater at the lens would take the focus
+    touched = (grid.cover[:, :, max(eye_k - 1, 0):eye_k + 2] >= TOUCHED).any(axis=2)
+    obstacles = ~stand | sight | touched
+    clear = _clearance(obstacles)
+    level = float(np.count_nonzero(stand & (np.abs(above - ceiling) <= LEVEL_TOLERANCE * height)))
+    level /= float(np.count_nonzero(stand))
+    need = max(2.0, MIN_CLEARANCE * height)
+    if level < ROOFED:
+        return f"no level ceiling (over {level:.0%} of where one can stand)"
+    if clear.max() < need:
+        return f"no room to stand ({clear.max():.0f} cells from an obstacle at most, {need:.1f} needed)"
+    room = stand & (clear >= need)
+    # the clearest places to stand, each the clearest of its open space (none within another's
+    # clearance), clearest first; the eye takes the first with surfaces around it (a terrace's
+    # clear strip may look out at nothing)
+    cells = []
+    for cell in np.argwhere(room)[np.argsort(-clear[room], kind="stable")]:
+        if all(np.hypot(*(cell - other)) >= clear[tuple(other)] for other in cells):
+            cells.append(cell)
+            if len(cells) == CANDIDATES:
                 break
-            p10, p90 = weighted_quantiles(t, m, [0.1, 0.9])
-            if p90 - p10 > WALL_THICKNESS:
-                break
-        else:
-            walled.append(a)
-    return walled
+    cells = np.array(cells)
+    starts = np.column_stack([cells + 0.5, np.full(len(cells), eye_k + 0.5)])
+    _, met = _march(sealed, starts, _sphere(SPHERE_RAYS))
+    enclosed = met.mean(axis=1) >= ENCLOSED
+    if not enclosed.any():
+        return f"no surfaces around (in {met.mean(axis=1).max():.0%} of the directions at most)"
+    pick = int(np.argmax(enclosed))
+    best, start, enclosure = cells[pick], starts[pick], float(met[pick].mean())
+    angles = np.arange(AZIMUTHS) * 2 * math.pi / AZIMUTHS
+    dirs = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    reach = _march(sight, start[None, :2], dirs)[0][0]
+    # principal axis of the isovist (the star polygon of the reaches about the eye): its central
+    # second moment ∫∫ (x − c)(x − c)ᵀ dA, from ∫₀ᵈ r^(k+1) dr = d^(k+2)/(k+2) per ray
+    area = float((reach**2 / 2).sum())
+    centroid = (dirs * (reach**3 / 3)[:, None]).sum(axis=0) / area
+    moments = (dirs[:, :, None] * dirs[:, None, :] * (reach**4 / 4)[:, None, None]).sum(axis=0)
+    axis = np.linalg.eigh(moments - area * np.outer(centroid, centroid))[1][:, -1]
+    fan = np.cos(FAN) < dirs @ axis
+    if reach[fan].mean() < reach[np.cos(FAN) < -(dirs @ axis)].mean():
+        axis = -axis
+    behind, _ = _march(obstacles, start[None, :2], -axis[None])  # as far as one can stand
+    back = max(0.0, min(STEP_BACK * float(behind[0, 0]), float(behind[0, 0]) - MIN_CLEARANCE * height))
+    position = best - back * axis
+    eye_height = grid.origin[2] + (floor + 0.5 + EYE_HEIGHT * height) * grid.cell
+    eye = grid.world(position, eye_height)
+    look = axis[0] * frame[0] + axis[1] * frame[1]
+    h = grid.cell
+    return Place(eye, look / np.linalg.norm(look), float(grid.origin[2] + (floor + 0.5) * h),
+                 float(grid.origin[2] + (ceiling + 0.5) * h), enclosure, level,
+                 f"a place: a level ceiling {height * h:.3g} over the floor above {level:.0%} of where one can stand, "
+                 f"surfaces in {enclosure:.0%} of the directions from the eye")
 
 
 def overview_camera(scene: GaussianScene, width: int, height: int, fov_deg: float = 50.0,
@@ -259,18 +588,15 @@ def overview_camera(scene: GaussianScene, width: int, height: int, fov_deg: floa
     :func:`robust_box`, weighted as there), from ``ELEVATION_DEG`` above the horizon of ``up`` (default −y), at
     the distance where the box's corners fill ``FILL`` of the frame.
 
-    A scene that surrounds its centre (:func:`walled_axes`: a room, a street) is seen from inside
-    instead: level, along the box's longest horizontal axis, from :data:`INSIDE_BACK` of its
-    half-length behind the centre, so that the first frame is the room, not the outside of its walls."""
+    A place (:func:`find_place`: a room, a corridor, a flat) is seen from inside instead: from where one
+    would stand in it, at eye height, level, along its long way, so that the first frame is the room,
+    not the outside of its walls."""
     up = axis_vector("-y") if up is None else np.asarray(up, np.float64) / np.linalg.norm(up)
+    place = find_place(scene, up)
+    if place is not None:
+        return look_at(place.eye, place.eye + place.look, width, height, fov_deg, up)
     lo, hi = robust_box(scene)
     centre = (lo + hi) / 2
-    if walled_axes(scene, up):
-        horizontal = [a for a in range(3) if abs(float(up[a])) <= 0.5]
-        a = max(horizontal, key=lambda k: hi[k] - lo[k])
-        along = np.eye(3)[a]
-        eye = centre - INSIDE_BACK * (hi[a] - lo[a]) / 2 * along
-        return look_at(eye, eye + along, width, height, fov_deg, up)
     scene = _sample(scene)
     if scene.count:
         inside = np.all((scene.means >= lo) & (scene.means <= hi), axis=1)

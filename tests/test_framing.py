@@ -10,16 +10,17 @@ import pytest
 from inria_folder import SCENES, TWO_PLANES
 
 from dofview.bench.primitives import Parts, add_panel
-from dofview.bench.synth import room_scene
+from dofview.bench.synth import furnished_room, room_scene
 from dofview.cli import main
 from dofview.frame import Frame
-from dofview.framing import UP_AXES, axis_vector, guess_up, overview_camera, robust_box, walled_axes
+from dofview.framing import UP_AXES, axis_vector, find_place, guess_up, overview_camera, robust_box
 from dofview.io import load_scene
 from dofview.io.exr import read_exr
 from dofview.lens import Lens
 from dofview.rendering.focus import auto_focus, depth_range
-from dofview.scene import GaussianScene, matrices_from_quats
+from dofview.scene import GaussianScene, matrices_from_quats, quat_from_matrix
 
+SAMPLES = SCENES.parents[1] / "samples"
 SCENE_FILES = ["two_planes.ply", "burger.ply", "guitar.compressed.ply", "biker.spz", "tap.spz"]
 SIZE = (160, 120)
 MAX_CENTRE_OFFSET = 0.1  # the coverage's centroid within 10 % of the image size of its centre
@@ -145,13 +146,145 @@ def test_a_room_is_seen_from_inside_along_its_length():
     assert auto_focus(frame) == pytest.approx(4.0 - cam.centre[0], rel=0.05)
 
 
-@pytest.mark.parametrize("name", SCENE_FILES)
-def test_objects_are_still_seen_from_outside(name):
-    scene = load_scene(SCENES / name, progress=False)
+# ---- issue 31: places open from inside, at eye height, level, along their long way -------------------
+EYE = 0.55  # framing.EYE_HEIGHT, restated: the tests hold the module to the numbers its docs give
+
+
+def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(…, 4) Hamilton products a ⊗ b of (w, x, y, z) quaternions."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+
+
+def turned(scene: GaussianScene, R: np.ndarray) -> GaussianScene:
+    """``scene`` rotated by the (3, 3) rotation ``R`` about the origin (means and orientations)."""
+    q = quaternion_product(np.asarray(quat_from_matrix(R), np.float64), scene.unit_quats().astype(np.float64))
+    return GaussianScene((scene.means @ R.T).astype(np.float32), q.astype(np.float32), scene.scales,
+                         scene.opacities, scene.sh_dc, name=scene.name)
+
+
+Z_UP = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # world −y (up in the 3DGS convention) onto +z
+
+
+def free_way(eye: np.ndarray, direction: np.ndarray, length: float, width: float) -> float:
+    """Distance from ``eye`` (3,) along the horizontal ``direction`` (3,) to the walls of a
+    :func:`furnished_room` (x = ±length/2, z = ±width/2)."""
+    ts = [(np.sign(direction[a]) * half - eye[a]) / direction[a]
+          for a, half in ((0, length / 2), (2, width / 2)) if abs(direction[a]) > 1e-12]
+    return float(min(ts))
+
+
+def check_inside(scene: GaussianScene, up: np.ndarray, length: float, width: float, height: float,
+                 world: np.ndarray = np.eye(3)) -> tuple:
+    """The camera :func:`overview_camera` puts in a :func:`furnished_room` of these sizes turned by
+    ``world`` (3, 3): inside, at eye height, level, upright, looking along the long way towards its
+    far end, and no Gaussian at the lens. Returns the camera and its eye in the room's own frame."""
+    spot = find_place(scene, up)
+    assert spot is not None, "a room is a place"
+    cam = overview_camera(scene, *SIZE, up=up)
+    eye, forward = world.T @ cam.centre, world.T @ cam.forward  # back in the room's own frame (y down)
+    margin = 0.1 * height
+    assert abs(eye[0]) < length / 2 - margin and abs(eye[2]) < width / 2 - margin  # inside the walls
+    assert -eye[1] == pytest.approx(EYE * height, abs=0.05 * height)  # at eye height above the floor
+    assert (spot.floor, spot.ceiling) == pytest.approx((0.0, height), abs=0.05 * height)  # heights along up
+    assert cam.forward @ up == pytest.approx(0.0, abs=1e-9) and cam.R[0] @ up == pytest.approx(0.0, abs=1e-9)
+    assert -cam.R[1] @ up == pytest.approx(1.0)  # level, no roll, upright
+    along = np.eye(3)[0] if length >= width else np.eye(3)[2]
+    assert abs(forward @ along) > np.cos(np.radians(10))  # along the long way
+    ahead, behind = free_way(eye, forward, length, width), free_way(eye, -forward, length, width)
+    assert ahead > behind and ahead > 0.5 * max(length, width)  # towards the far end, the room before it
+    lens = np.linalg.norm(scene.means - cam.centre, axis=1) - 3 * scene.scales.max(axis=1)
+    assert lens[scene.opacities > 0.1].min() > 0.0  # nothing at the lens
+    return cam, eye
+
+
+def test_a_room_with_a_table_in_its_middle_is_seen_from_inside():
+    """The middle of the room is taken by a table and chairs: the eye stands where the floor is free,
+    not in them, at eye height, and looks down the room's length; the first frame is sharp on the far
+    wall, not on a floater (a third of 300 are opaque)."""
+    length, width, height = 6.0, 4.0, 2.6
+    room = furnished_room(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300)
+    guess = guess_up(room)
+    assert guess.label == "-y" and "a room" in guess.reason, guess.reason
+    cam, eye = check_inside(room, guess.vector, length, width, height)
+    assert not (abs(eye[0]) < 1.2 + 0.25 + 0.1 and abs(eye[2]) < 0.8 + 0.25 + 0.1)  # off the table and chairs
+    from dofview.rendering.quad import QuadBackend
+    renderer = QuadBackend(room)
+    frame = renderer.render(cam, Lens(1.0, 0.0))
+    renderer.release()
+    assert frame.alpha.mean() > 0.95  # walls, floor and ceiling fill the frame
+    assert auto_focus(frame) == pytest.approx(free_way(eye, cam.forward, length, width), rel=0.05)
+    near, _ = depth_range(frame)
+    assert near > 0.3 * height  # the nearest of the frame is the floor at its foot, no floater at the lens
+
+
+def test_the_eye_keeps_off_a_floater():
+    """Opaque specks where the eye would stand (a capture leaves floaters on its path), too few to make
+    a surface: the eye stands elsewhere, with no Gaussian at the lens."""
+    length, width, height = 6.0, 4.0, 2.6
+    room = furnished_room(length, width, height, table=True)
+    up = axis_vector("-y")
+    spot = overview_camera(room, *SIZE, up=up).centre
+    rng = np.random.default_rng(2)
+    specks = spot + rng.normal(0.0, 0.1, (6, 3))  # sparse: less than half a cell's face each, no surface
+    parts = Parts.empty()
+    parts.add(specks, (0.02, 0.02, 0.02), (0.1, 0.1, 0.1), 0.9)
+    specks = parts.build("srgb", "specks")
+    cam, _ = check_inside(concat(room, specks), up, length, width, height)
+    assert np.linalg.norm(cam.centre - spot) > 0.1
+
+
+def concat(a: GaussianScene, b: GaussianScene) -> GaussianScene:
+    """The Gaussians of ``a`` and ``b`` in one scene (SH degree 0)."""
+    return GaussianScene(*(np.concatenate([getattr(a, f), getattr(b, f)])
+                           for f in ("means", "quats", "scales", "opacities", "sh_dc")), name=a.name)
+
+
+def test_a_corridor_is_seen_along_its_length():
+    """8 × 1.6, 2.5 high, doorways on both sides and at one end: the eye stands in it and looks down it."""
+    length, width, height = 8.0, 1.6, 2.5
+    corridor = furnished_room(length, width, height, doors={"-z": [(-2.0, -1.1), (1.5, 2.4)], "+z": [(0.0, 0.9)],
+                                                   "+x": [(-0.45, 0.45)]}, floaters=100, seed=1)
+    guess = guess_up(corridor)
+    assert guess.label == "-y", guess.reason
+    check_inside(corridor, guess.vector, length, width, height)
+
+
+def test_a_z_up_room_is_seen_upright_from_inside():
+    """The furnished room turned so that its up is +z (a Blender or PlayCanvas export): the guess
+    follows it, and the camera is inside, upright in +z."""
+    length, width, height = 6.0, 4.0, 2.6
+    room = turned(furnished_room(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300), Z_UP)
+    guess = guess_up(room)
+    assert guess.label == "+z", guess.reason
+    check_inside(room, guess.vector, length, width, height, world=Z_UP)
+
+
+def test_a_table_on_a_floor_is_an_object():
+    """Under a table top there is a floor and a level roof, but the roof covers little of the floor
+    around it and the sides are open: a table scanned on the ground it stands on is seen from outside."""
+    parts = Parts.empty()
+    add_panel(parts, 1, 0.0, {0: (-1.5, 1.5), 2: (-1.5, 1.5)}, (0.55, 0.45, 0.35))
+    add_panel(parts, 1, -0.75, {0: (-0.8, 0.8), 2: (-0.45, 0.45)}, (0.4, 0.25, 0.1), 0.05)
+    legs = [(x, y, z) for x in (-0.75, 0.75) for z in (-0.4, 0.4) for y in np.arange(-0.7, 0.0, 0.05)]
+    parts.add(legs, (0.03, 0.03, 0.03), (0.3, 0.2, 0.1), 0.95)
+    table = parts.build("srgb", "table")
+    assert find_place(table, axis_vector("-y")) is None
+    lo, hi = robust_box(table)
+    cam = overview_camera(table, *SIZE, up=axis_vector("-y"))
+    assert not np.all((cam.centre > lo) & (cam.centre < hi))
+
+
+@pytest.mark.parametrize("path", [SCENES / n for n in SCENE_FILES] + sorted(SAMPLES.glob("*.ply")),
+                         ids=lambda p: p.name)
+def test_objects_are_still_seen_from_outside(path):
+    scene = load_scene(path, progress=False)
     cam = overview_camera(scene, *SIZE, up=guess_up(scene).vector)
     lo, hi = robust_box(scene)
     assert not (np.all(cam.centre > lo) and np.all(cam.centre < hi))
-    assert walled_axes(scene, guess_up(scene).vector) == []
+    assert find_place(scene, guess_up(scene).vector) is None
 
 
 def test_the_top_of_a_scanned_box_is_no_ground():

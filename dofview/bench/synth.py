@@ -601,6 +601,56 @@ def room_scene() -> GaussianScene:
     return parts.build("srgb", "room")
 
 
+def _wall(parts: Parts, axis: int, at: float, span: dict[int, tuple[float, float]], colour,
+          doors: tuple[tuple[float, float], ...] = ()) -> None:
+    """A wall of :func:`furnished_room` (``add_panel``) with door openings ``doors`` ((lo, hi) along
+    its horizontal span) from the floor (y = 0) up to y = −2.0, and lintels over them."""
+    horizontal = next(a for a in span if a != 1)
+    edges = [span[horizontal][0], *[e for d in sorted(doors) for e in d], span[horizontal][1]]
+    for lo, hi in zip(edges[::2], edges[1::2]):
+        add_panel(parts, axis, at, {horizontal: (lo, hi), 1: span[1]}, colour)
+    for lo, hi in doors:
+        add_panel(parts, axis, at, {horizontal: (lo, hi), 1: (span[1][0], -2.0)}, colour)
+
+
+def furnished_room(length: float, width: float, height: float, *, doors: dict | None = None,
+                   table: bool = False, floaters: int = 0, seed: int = 0) -> GaussianScene:
+    """A place to open from inside: a room of thin Gaussians (``add_panel``, 0.1 apart), world y
+    down, floor at y = 0, ceiling at y = −``height``, walls at x = ±length/2 and z = ±width/2 with
+    door openings ``doors`` {"-x" | "+x" | "-z" | "+z": [(lo, hi), …]} 2.0 high. ``table``: a table
+    in its middle (top 1.6 × 0.9 at 0.75 above the floor, four legs) and four chairs around it (seats
+    0.44 square at 0.45, backs up to 0.9; all within x ±1.45, z ±1.05). ``floaters``: that many
+    small splats (σ 0.01–0.04) scattered through the room, every third opaque (0.9), the others
+    faint, as a capture leaves them. SH degree 0, sRGB; seeded."""
+    parts = Parts.empty()
+    hx, hz = length / 2, width / 2
+    doors = doors or {}
+    add_panel(parts, 1, 0.0, {0: (-hx, hx), 2: (-hz, hz)}, (0.55, 0.45, 0.35))  # floor
+    add_panel(parts, 1, -height, {0: (-hx, hx), 2: (-hz, hz)}, (0.9, 0.9, 0.88))  # ceiling
+    for name, axis, at, span, colour in (("-x", 0, -hx, {1: (-height, 0.0), 2: (-hz, hz)}, (0.8, 0.3, 0.3)),
+                                         ("+x", 0, hx, {1: (-height, 0.0), 2: (-hz, hz)}, (0.3, 0.7, 0.3)),
+                                         ("-z", 2, -hz, {0: (-hx, hx), 1: (-height, 0.0)}, (0.3, 0.3, 0.8)),
+                                         ("+z", 2, hz, {0: (-hx, hx), 1: (-height, 0.0)}, (0.8, 0.8, 0.3))):
+        _wall(parts, axis, at, span, colour, tuple(doors.get(name, ())))
+    if table:
+        add_panel(parts, 1, -0.75, {0: (-0.8, 0.8), 2: (-0.45, 0.45)}, (0.4, 0.25, 0.1), 0.05)
+        legs = [(x, y, z) for x in (-0.75, 0.75) for z in (-0.4, 0.4) for y in np.arange(-0.7, 0.0, 0.05)]
+        parts.add(legs, (0.03, 0.03, 0.03), (0.3, 0.2, 0.1), 0.95)
+        for cx, cz, facing in ((-1.2, 0.0, 0), (1.2, 0.0, 0), (0.0, -0.8, 2), (0.0, 0.8, 2)):
+            seat = {0: (cx - 0.22, cx + 0.22), 2: (cz - 0.22, cz + 0.22)}
+            add_panel(parts, 1, -0.45, seat, (0.2, 0.4, 0.6), 0.05)
+            centre = cx if facing == 0 else cz
+            back = {2 - facing: seat[2 - facing], 1: (-0.9, -0.45)}
+            add_panel(parts, facing, centre + 0.25 * np.sign(centre), back, (0.2, 0.4, 0.6), 0.05)
+    if floaters:
+        rng = np.random.default_rng(seed)
+        means = rng.uniform((-hx, -height, -hz), (hx, 0.0, hz), (floaters, 3))
+        opacity = np.where(np.arange(floaters) % 3 == 0, 0.9, rng.uniform(0.05, 0.3, floaters))
+        size = rng.uniform(0.01, 0.04, (floaters, 1)) * np.ones(3)
+        parts.add(means, size, rng.uniform(0.0, 1.0, (floaters, 3)), opacity)
+    return parts.build("srgb", "furnished room")
+
+
 def receding_floor(width: int, height: int, blur: float) -> tuple[GaussianScene, Camera, Lens]:
     """The sliced mode's seam case: a uniform grey floor of thin Gaussians (x in ±4, y = 0.6 below
     the eye, z from 0.5 to 9; 27,200 splats, sRGB) seen from the origin towards (0, 0.35, 4) with a
