@@ -221,7 +221,7 @@ def _tonemap(v: "PanelHost") -> None:
             s.tonemap_params = {**s.tonemap_params, f.name: new}
     if op.adaptive:
         _, s.stats_lock = imgui.checkbox("lock adaptation", s.stats_lock)
-        st = v.model.smoother.state
+        st = v.model.tone.smoother.state
         if st is not None:
             imgui.text_disabled(f"key 2^{st.key:+.2f}, 1-99%: 2^{st.lo:+.2f}..2^{st.hi:+.2f}")
 

@@ -33,7 +33,8 @@ class Viewer:
     (help, fly mode, the panel's file fields, the script's capture queues)."""
 
     def __init__(self, window: Window, scene: GaussianScene, scene_path: Path, settings: ViewerSettings,
-                 camera: Camera, cameras: list[Camera], up: UpGuess | None = None, raster: str = "auto") -> None:
+                 camera: Camera, cameras: list[Camera], up: UpGuess | None = None, raster: str = "auto",
+                 **lod: object) -> None:
         self.window = window
         self.ctx = window.ctx
         self.show_help = False
@@ -50,7 +51,9 @@ class Viewer:
         self.panel_layout: dict[str, float | list[float]] = {}
         self.handle_input = InputHandler()
         self._last_frame = time.perf_counter()
-        self.model = ViewerModel(self.ctx, self._image_size, scene, scene_path, settings, camera, cameras, up, raster)
+        # lod: the streamed LOD set the scene is a level of, and its budget or level (ViewerModel's)
+        self.model = ViewerModel(self.ctx, self._image_size, scene, scene_path, settings, camera, cameras, up, raster,
+                                 **lod)
         self._titled: int | None = None  # the model's scene generation the title names
         self._title()
 
