@@ -45,9 +45,10 @@ def settle_stream(model: ViewerModel, timeout_s: float = 60.0) -> None:
 
 @pytest.mark.parametrize("raster", ["quad", "compute"])
 def test_leaves_follow_the_camera_within_the_budget(raster, monkeypatch):
-    """Opened at the coarse level (the finest within 16,000 Gaussians), the stream refines the
-    leaves near the camera; moving the camera to the other side changes the choice again. Every
-    subset is gathered off the UI thread, and the settled frame is a fresh renderer's of it."""
+    """Read at the coarse level (the finest within 16,000 Gaussians), the set opens with the leaves
+    near the first view refined; moving the camera round to the other side changes the choice. The
+    subsets the frames take are gathered off the UI thread, and each settled frame is what a fresh
+    renderer of its Gaussians draws."""
     budget = 16_000
     model = open_lod_model(budget, raster)
     lod_set: LodSet = model.lod_set
@@ -55,10 +56,9 @@ def test_leaves_follow_the_camera_within_the_budget(raster, monkeypatch):
     gather = LodSet.gather
     monkeypatch.setattr(LodSet, "gather", lambda self, *a: threads.append(threading.current_thread()) or gather(self, *a))
     try:
-        assert model.scene.count == 9565 and np.all(model.stream.choice == 1)
-        settle_stream(model)
         seen = []
         for _ in range(2):
+            settle_stream(model)
             choice = lod_set.select(model.camera().centre, budget)
             assert np.array_equal(model.stream.choice, choice) and 0 in choice and 1 in choice
             assert model.scene.count == lod_set.selection_count(choice) <= budget
@@ -70,8 +70,7 @@ def test_leaves_follow_the_camera_within_the_budget(raster, monkeypatch):
             assert np.array_equal(model.renderer.read().rgba, want.rgba)
             seen.append(choice)
             model.controls.orbit(600.0, 0.0)  # round to the other side of the cards
-            settle_stream(model)
-        assert not np.array_equal(*seen) and model.stream.swaps >= 2
+        assert not np.array_equal(*seen) and model.stream.swaps >= 1
         assert threads and threading.main_thread() not in threads
     finally:
         model.close()

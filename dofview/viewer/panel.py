@@ -257,7 +257,16 @@ def _status(v: "PanelHost") -> None:
                      graph_size=imgui.ImVec2(-1, 40))
     imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")
     n = v.model.progressive.samples
-    imgui.text(f"thin lens: {n} sub-aperture passes" if n > 1 else "thin lens: single pass")
+    if v.model.previewing:  # the view moves: the preview the interaction budget affords
+        imgui.text(f"moving: {v.model.preview} (budget {v.model.interaction.budget_ms:.0f} ms)")
+    else:
+        imgui.text(f"thin lens: {n} sub-aperture passes" if n > 1 else "thin lens: single pass")
+    stream = v.model.stream
+    if stream is not None:  # a streamed LOD set: how many leaves each level draws
+        levels = np.bincount(stream.choice + 1, minlength=v.model.lod_set.levels + 1)
+        drops = f", {levels[0]} left out" if levels[0] else ""
+        imgui.text_disabled(f"LOD leaves by level {'/'.join(map(str, levels[1:]))}{drops}; "
+                            f"budget {v.model.budget / 1e6:.3g}M")
     cam = v.model.camera()
     imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.model.scene_path.name}")
 

@@ -101,7 +101,7 @@ class LodStream:
                 camera, self._camera = self._camera, None
                 self._busy = True
             try:
-                swap = self._make(camera)
+                swap = self.make(camera)
             except DofviewError as e:
                 swap, self.error = None, str(e)
             with self._cond:
@@ -109,8 +109,13 @@ class LodStream:
                     self._result = swap
                 self._busy = False
 
-    def _make(self, camera: Camera) -> Swap | None:
-        """The swap for ``camera``, or None when its choice is the one drawn."""
+    def make(self, camera: Camera) -> Swap | None:
+        """The swap for ``camera`` made on this thread, or None when its choice is the one drawn (the
+        worker's step; the viewer calls it itself only while it opens a set, before the first frame).
+
+        Raises:
+            SceneFormatError: a chunk that cannot be decoded.
+        """
         choice = self.lod_set.select(camera.centre, self.budget)
         if np.array_equal(choice, self.choice):
             return None

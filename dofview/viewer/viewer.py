@@ -127,6 +127,7 @@ class Viewer:
         """The model's state and the window's as plain data (the script's ``report`` action)."""
         return {
             **self.model.report(), "show_help": self.show_help, "fly_mode": self.fly_mode, "frames": self.frames,
+            "frame_ms": [round(t, 1) for t in self.frame_ms],
             "clipboard": self.window.clipboard(),
             # ImGui's state after the last frame: a text field being edited takes the keys
             "keyboard_captured": imgui.get_io().want_capture_keyboard, "ui_active": imgui.is_any_item_active(),

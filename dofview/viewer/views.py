@@ -33,7 +33,7 @@ from dofview.scene import GaussianScene
 from dofview.viewer.controls import ViewControls
 from dofview.viewer.loader import SceneLoad
 from dofview.viewer.settings import ViewerSettings
-from dofview.viewer.streaming import LodStream
+from dofview.viewer.streaming import LodStream, Swap
 
 
 class ViewerViews:
@@ -108,6 +108,13 @@ class ViewerViews:
             camera, self.view_index = self.cameras[0], 0
         self._set_controls(camera or self._overview())
         self._scene_shown(new=True)
+        if self.stream is not None:  # opening: the first view's leaves now, before its first frame
+            try:
+                swap = self.stream.make(self.camera())
+            except DofviewError as e:  # a chunk that cannot be decoded: the level read stays
+                swap, self.error = None, str(e)
+            if swap is not None:
+                self._swap_in(swap)
 
     def _scene_shown(self, new: bool) -> None:
         """What follows a ``new`` scene, or another subset of the LOD set (False), in the renderer:
@@ -122,8 +129,9 @@ class ViewerViews:
         swap = self.stream.take()
         if self.stream.error and not self.error:  # a chunk that cannot be decoded: said, the scene stays
             self.error = self.stream.error
-        if swap is None:
-            return False
+        return swap is not None and self._swap_in(swap)
+
+    def _swap_in(self, swap: Swap) -> bool:
         try:
             self.renderer.swap_scene(swap.scene, swap.arrays, (swap.camera, swap.order))
         except DofviewError as e:  # more than this backend holds: the chunks drawn stay
