@@ -227,3 +227,14 @@ def test_non_finite_gaussians_of_a_chunk_are_dropped_with_a_warning(tmp_path):
         scene = load_scene(path, progress=False, lod=0)
     assert any("dropped" in str(w.message) and str(chunk) in str(w.message) for w in caught)
     assert 0 < scene.count < 19129 and np.isfinite(scene.scales).all()
+
+
+def test_bench_and_view_refuse_a_bad_set_in_one_line(tmp_path, capsys):
+    path = _copy(cards_set(), tmp_path / "set")
+    path.write_text(json.dumps(_edit(json.loads(path.read_text()), "outside")))
+    for argv in (["bench", str(path.parent), "--quick", "--out", str(tmp_path / "o")],
+                 ["render", str(path.parent), "-o", str(tmp_path / "x.exr"), "--budget", "1M"]):
+        code = main(argv)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and "points at chunk 6" in err[0], err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "x.exr").exists()

@@ -56,10 +56,10 @@ def test_moving_follows_state_changes_in_time():
     assert b.moving("a", 1.0 + STILL_AFTER_S / 2)
     assert not b.moving("a", 1.0 + 1.01 * STILL_AFTER_S)
     assert b.moving("b", 5.0)
-    b.record_pinhole(1.0, now=5.0)
+    b.record_pinhole(10.0, now=5.0)
     assert not b.pinhole_due(6.0) and b.pinhole_due(20.0)
-    b.pinhole_stale()
-    assert b.pinhole_due(6.0)
+    b.pinhole_stale(0.5)  # half the Gaussians drawn: half the cost until timed again
+    assert b.pinhole_due(6.0) and b.pinhole_ms == 5.0
 
 
 def test_preview_view_keeps_the_blur_relative_to_the_image():
@@ -108,16 +108,29 @@ def test_model_previews_while_moving_then_draws_the_full_frame(raster):
         model.close()
 
 
-def test_model_measures_the_pinhole_when_it_is_stale():
-    model = open_model("quad", lens_samples_max=0)
+def test_model_times_the_pinhole_again_once_the_view_rests():
+    """A stale pinhole timing is not redone while the view moves (it would hold up the motion), but
+    once the view rests with its image kept by the refinement; the image shown stays the same."""
+    model = open_model("quad", lens_samples_max=4)
     try:
+        model.settings.aperture = 40.0
         settle(model)
         b = model.interaction
-        assert b.pinhole_ms is not None  # the pinhole pass of the view's opening lens was timed
-        b.pinhole_stale()
-        assert b.pinhole_due(time.perf_counter())
+        assert b.pinhole_ms is not None and not b.pinhole_due(time.perf_counter())  # timed as the view opened
+        b.pinhole_stale(0.5)
+        t = time.perf_counter()
         model.controls.orbit(20.0, 0.0)
-        model.update(time.perf_counter())  # a motion starts: its pinhole frame timed first
-        assert not b.pinhole_due(time.perf_counter())
+        model.update(t)  # moving: drawn at once, nothing timed
+        while model.renderer.sort_pending:  # the moved view's order, sorted in the background
+            time.sleep(0.005)
+            model.update(t)
+        assert b.pinhole_due(t)
+        model.update(t + 1.01 * STILL_AFTER_S)  # the full frame of the resting view
+        shown = model.renderer.read().rgba
+        assert model.progressive.samples == 1 and b.pinhole_due(t)
+        assert not model.update(t + 2 * STILL_AFTER_S)  # the pinhole frame timed, the image put back
+        assert not b.pinhole_due(time.perf_counter()) and np.array_equal(model.renderer.read().rgba, shown)
+        model.update(t + 3 * STILL_AFTER_S)
+        assert model.progressive.samples == 2  # then the refinement goes on
     finally:
         model.close()

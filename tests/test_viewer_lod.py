@@ -5,12 +5,15 @@ the chosen Gaussians draws."""
 
 from __future__ import annotations
 
+import json
+import os
 import threading
 import time
 
 import numpy as np
 import pytest
-from lod_sets import ROOT, cards_set
+from lod_sets import ROOT, cards_set, sh_set
+from test_viewer import display, run_viewer  # noqa: F401  (display is a fixture)
 from test_viewer_model import SIZE, settle
 
 from dofview.io import load_scene
@@ -110,3 +113,24 @@ def test_a_chunk_that_cannot_be_decoded_stops_nothing(tmp_path):
         assert model.scene.count == 9565 and model.report()["lod"]["error"] == model.stream.error
     finally:
         model.close()
+
+
+def test_the_window_streams_a_set_and_opens_another(display, tmp_path):  # noqa: F811
+    """``dofview view SET --budget 16k`` under Xvfb: the first view's leaves mixed within the budget,
+    chunks swapped as the camera orbits; a set's folder dropped on the window opens and streams."""
+    script = [{"do": "report", "path": tmp_path / "open.json"}, {"do": "orbit", "dx": 600, "dy": 0},
+              {"do": "settle"}, {"do": "report", "path": tmp_path / "moved.json"},
+              {"do": "open", "path": sh_set().parent}, {"do": "report", "path": tmp_path / "other.json"},
+              {"do": "quit"}]
+    (tmp_path / "script.json").write_text(json.dumps(script, default=str))
+    res = run_viewer([cards_set().parent, "--budget", "16k", "--cameras", ROOT / "samples" / "cards_cameras.json",
+                      "--width", "420", "--height", "240", "--script", tmp_path / "script.json"],
+                     {**os.environ, "DISPLAY": display})
+    assert res.returncode == 0, res.stderr
+    assert "level 1 (the finest within the budget of 16,000)" in res.stderr
+    r = {n: json.loads((tmp_path / f"{n}.json").read_text()) for n in ("open", "moved", "other")}
+    for n in ("open", "moved"):
+        levels = r[n]["lod"]["levels"]
+        assert 0 in levels and 1 in levels and r[n]["count"] <= 16_000 and r[n]["error"] == ""
+    assert r["moved"]["lod"]["levels"] != r["open"]["lod"]["levels"] and r["moved"]["lod"]["swaps"] >= 1
+    assert r["other"]["count"] == 3200 and r["other"]["lod"]["levels"] == [0] * 4 and r["other"]["error"] == ""

@@ -154,8 +154,8 @@ class Renderer(ABC):
         Without ``order`` the next draw sorts.
 
         Raises:
-            BackendUnavailable: this backend cannot hold ``scene`` (:meth:`require`); the current
-                scene stays.
+            DofviewError: this backend cannot hold ``scene`` (:meth:`require`: BackendUnavailable,
+                or a buffer over the GL's limit); the current scene stays.
             ValueError: ``scene`` has another SH degree.
         """
         if scene.sh_degree != self.scene.sh_degree:

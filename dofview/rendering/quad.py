@@ -114,7 +114,7 @@ class QuadBackend(Renderer):
         and the view asked for, so the views that follow are sorted in the background."""
         if self._order.size < 4 * max(self.scene.count, 1):
             self._order.release()
-            self._order = self.ctx.buffer(reserve=4 * self.scene.count)
+            self._order = self.ctx.buffer(reserve=4 * max(self.scene.count, 1))
         if self._thread is not None:
             self._thread.close(wait=False)
             self._thread = None

@@ -35,6 +35,7 @@ class ViewerLens(ViewerViews):
         self.start_aperture: float | None = None
         self.start_blur: BlurSpec | None = None  # --blur: resolved again on each view's own depths
         self._drawn_key: tuple | None = None  # what the targets hold (the model's frames)
+        self._pinhole_view: tuple | None = None  # the view whose pinhole frame was timed last
 
     def _loaded(self) -> None:
         self.start_focus = self.start_aperture = self.start_blur = None  # the command line's lens was for the first scene's scale
@@ -111,7 +112,12 @@ class ViewerLens(ViewerViews):
         self.renderer.draw(camera, Lens(1.0, 0.0), self.settings.render)
         self.ctx.finish()
         self.interaction.record_pinhole((time.perf_counter() - t0) * 1e3, time.perf_counter())
+        self._pinhole_view = self._view_of(camera)
         self._drawn_key = None  # the targets now hold the pinhole pass
+
+    def _view_of(self, camera: Camera) -> tuple:
+        """What a pinhole frame's cost depends on: the view, the image size and the Gaussians drawn."""
+        return camera.view_key(), camera.width, camera.height, self.scene.count
 
     @property
     def focus_range(self) -> tuple[float, float]:

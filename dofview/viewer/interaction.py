@@ -5,8 +5,9 @@ allow; once the view rests for :data:`STILL_AFTER_S`, the full frame (and then t
 A :class:`Preview` is a depth-of-field mode at an internal resolution (the image shown is scaled
 up to the window). The ladder of previews runs from the best to the cheapest, ordered by their
 error against the still frame as measured on the shared scenes (``python -m dofview.bench.preview``,
-docs/BENCHMARKS.md "Previews while moving"). Costs are measured as the frames are drawn: a rung
-never drawn is tried once, the rungs already measured over the budget are skipped.
+docs/BENCHMARKS.md). Costs are measured as the frames are drawn: a rung never drawn is tried once,
+the rungs already measured over the budget are skipped. The pinhole frame is timed by the viewer's
+pinhole passes and, when that timing is stale, once the view rests.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from dofview.lens import Lens
 
 BUDGET_FACTOR = 1.2
 STILL_AFTER_S = 0.12  # a view unchanged this long is still (a slider held between two drags is not)
-PINHOLE_STALE_S = 10.0  # a motion that starts this long after the last pinhole frame measures one first
+PINHOLE_STALE_S = 10.0  # a pinhole frame timed this long ago is timed again once the view rests
 SMOOTHING = 0.5  # weight of a new cost measurement against the ones before
 
 
@@ -108,11 +109,15 @@ class InteractionBudget:
         self._pinhole_at = now
 
     def pinhole_due(self, now: float) -> bool:
-        """A motion starting at ``now`` should time a pinhole frame first (none yet, or stale)."""
+        """The pinhole frame should be timed again at ``now`` (none yet, or stale): the viewer does
+        it while the view rests, where it holds up no motion."""
         return self.enabled and now - self._pinhole_at >= PINHOLE_STALE_S
 
-    def pinhole_stale(self) -> None:
-        """The pinhole frame's cost is to be measured again (the scene drawn changed)."""
+    def pinhole_stale(self, scale: float = 1.0) -> None:
+        """The scene drawn changed: the pinhole frame's cost is taken as ``scale`` times the last
+        (the ratio of Gaussians drawn, as a vertex-bound frame scales) until it is timed again."""
+        if self.pinhole_ms is not None:
+            self.pinhole_ms *= scale
         self._pinhole_at = -math.inf
 
     def forget(self) -> None:

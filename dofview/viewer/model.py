@@ -60,6 +60,7 @@ class ViewerModel(ViewerLens):
         self.splat_draws = 0  # splatting passes shown (exposure, gamma, background, focus aid add none)
         self.preview: Preview | None = None  # how the image shown was drawn (None: not drawn yet)
         self._last_count = -math.inf
+        self._shown_count = 0  # Gaussians of the scene last shown (a swap scales the pinhole frame's cost)
         self.set_scene(scene, scene_path, camera, up, lod_set)
 
     def _scene_shown(self, new: bool) -> None:
@@ -71,7 +72,8 @@ class ViewerModel(ViewerLens):
             self.interaction.forget()
             self._last_count = -math.inf  # count the new scene's first frame
         else:  # another subset of a LOD set: the pinhole frame's cost changes with it
-            self.interaction.pinhole_stale()
+            self.interaction.pinhole_stale(self.scene.count / max(self._shown_count, 1))
+        self._shown_count = self.scene.count
         self._drawn_key = None
 
     def _release_scene(self) -> None:
@@ -134,13 +136,18 @@ class ViewerModel(ViewerLens):
         drawn = (self._drawn_key is not None and self._drawn_key[0] == state
                  and ladder.index(self._drawn_key[1]) <= ladder.index(preview))
         if not drawn:
-            if moving and self.interaction.pinhole_due(now):
-                self._time_pinhole(camera)  # the budget follows the view: its pinhole frame, timed again
             self._draw(camera, lens, preview, now)
             self._drawn_key = (state, preview)
             # the single-pass image is kept only where refinement can follow (it copies two float targets)
             self.progressive.restart(keep_single=preview == ladder[0] and lens.aperture > 0
                                      and self.settings.lens_samples_max > 0)
+        elif (self.progressive.samples and not self.busy and self.interaction.pinhole_due(now)
+              and self._pinhole_view != self._view_of(camera)):
+            # resting, the image kept: the budget's pinhole frame of this view timed again, shown back
+            self._time_pinhole(camera)
+            self._drawn_key = (state, preview)
+            self.progressive.show()
+            drawn = False
         elif 0 < self.progressive.samples < self.settings.lens_samples_max and not self.busy:
             # still: one more pass of the next stage, the last complete stage staying on screen;
             # the first refinement (2 passes) is drawn whole, so the second still frame shows it
