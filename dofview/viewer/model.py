@@ -225,7 +225,8 @@ class ViewerModel(ViewerLens):
             "splat_draws": self.splat_draws, "lens_samples": self.progressive.samples,
             "preview": str(self.preview), "budget_ms": self.interaction.budget_ms,
             "lod": None if self.stream is None else {"levels": self.stream.choice.tolist(), "swaps": self.stream.swaps,
-                                                     "budget": self.budget, "error": self.stream.error},
+                                                     "budget": self.budget, "error": self.stream.error,
+                                                     "swap_ms": self.swap_ms, "made_s": self.stream.made_s},
         }
 
     def with_render(self, **changes) -> None:

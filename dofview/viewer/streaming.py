@@ -53,6 +53,7 @@ class LodStream:
         self.choice = np.asarray(choice)  # the leaves' levels drawn (or on their way)
         self.error: str | None = None
         self.swaps = 0
+        self.made_s = 0.0  # the worker's time for the last swap taken (decode, gather, pack, sort)
         self._cond = threading.Condition()
         self._camera: Camera | None = None
         self._eye: np.ndarray | None = None
@@ -77,6 +78,7 @@ class LodStream:
             res, self._result = self._result, None
         if res is not None:
             self.swaps += 1
+            self.made_s = res.seconds
         return res
 
     @property

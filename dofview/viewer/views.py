@@ -6,6 +6,7 @@ and the world up, the view controls and the views they jump to. :class:`ViewerMo
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -69,6 +70,7 @@ class ViewerViews:
         self.renderer: Renderer | None = None
         self.stream: LodStream | None = None
         self.lod_set: LodSet | None = None
+        self.swap_ms = 0.0  # the UI thread's part of the last swap of a LOD set's chunks (the upload)
 
     # ---- scene -------------------------------------------------------------------------------
     def set_scene(self, scene: GaussianScene, path: Path, camera: Camera | None = None, up: UpGuess | None = None,
@@ -132,12 +134,14 @@ class ViewerViews:
         return swap is not None and self._swap_in(swap)
 
     def _swap_in(self, swap: Swap) -> bool:
+        t0 = time.perf_counter()
         try:
             self.renderer.swap_scene(swap.scene, swap.arrays, (swap.camera, swap.order))
         except DofviewError as e:  # more than this backend holds: the chunks drawn stay
             self.stream.close()
             self.stream, self.error = None, f"{self.scene_path}: streaming stopped ({e})"
             return False
+        self.swap_ms = (time.perf_counter() - t0) * 1e3
         self.scene = swap.scene
         self._scene_shown(new=False)
         return True
