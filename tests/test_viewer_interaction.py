@@ -25,8 +25,6 @@ def test_still_or_unmeasured_draws_the_full_frame():
     b.record_pinhole(10.0, now=0.0)
     assert b.budget_ms == pytest.approx(12.0)
     assert b.choose("sliced", moving=False) == FULL
-    b.enabled = False
-    assert b.choose("sliced", moving=True) == FULL
 
 
 def test_moving_takes_the_best_rung_within_the_budget():

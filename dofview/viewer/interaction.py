@@ -66,7 +66,6 @@ class InteractionBudget:
 
     def __init__(self, factor: float = BUDGET_FACTOR, still_after_s: float = STILL_AFTER_S) -> None:
         self.factor, self.still_after_s = factor, still_after_s
-        self.enabled = True
         self.costs: dict[Preview, float] = {}
         self.pinhole_ms: float | None = None
         self._pinhole_at = -math.inf
@@ -85,12 +84,12 @@ class InteractionBudget:
         return now - self._changed_at < self.still_after_s
 
     def choose(self, dof: str, moving: bool) -> Preview:
-        """The preview to draw: the full frame when still, off, or before any pinhole frame was
-        timed; while moving the best rung of ``dof``'s ladder not measured over the budget (one
-        never measured is tried), else the cheapest."""
+        """The preview to draw: the full frame when still or before any pinhole frame was timed;
+        while moving the best rung of ``dof``'s ladder not measured over the budget (one never
+        measured is tried), else the cheapest."""
         ladder = LADDERS[dof]
         budget = self.budget_ms
-        if not moving or not self.enabled or budget is None:
+        if not moving or budget is None:
             return ladder[0]
         for p in ladder:
             cost = self.costs.get(p)
@@ -111,7 +110,7 @@ class InteractionBudget:
     def pinhole_due(self, now: float) -> bool:
         """The pinhole frame should be timed again at ``now`` (none yet, or stale): the viewer does
         it while the view rests, where it holds up no motion."""
-        return self.enabled and now - self._pinhole_at >= PINHOLE_STALE_S
+        return now - self._pinhole_at >= PINHOLE_STALE_S
 
     def pinhole_stale(self, scale: float = 1.0) -> None:
         """The scene drawn changed: the pinhole frame's cost is taken as ``scale`` times the last
