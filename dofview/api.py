@@ -40,7 +40,8 @@ from dofview.tonemap.stats import Stats, StatsSmoother, frame_stats, pooled_stat
 
 
 def load(path: str | Path, *, colour_space: ColourSpace | None = None,
-         progress: bool | Callable[[int, int], None] = False, spz_axes: str | None = None) -> GaussianScene:
+         progress: bool | Callable[[int, int], None] = False, spz_axes: str | None = None,
+         lod: int | None = None, budget: int | None = None) -> GaussianScene:
     """Read a scene file (any format in :data:`dofview.io.READERS`).
 
     Args:
@@ -50,13 +51,16 @@ def load(path: str | Path, *, colour_space: ColourSpace | None = None,
         progress: a progress bar on stderr (True) or a ``progress(done, total)`` callback.
         spz_axes: for ``.spz`` files, the axes the data is in: None follows the file (the spec's
             RUB, converted to dofview's RDF), "rdf" takes it as stored (splat-transform's files).
+        lod, budget: for a streamed LOD set (``lod-meta.json`` or its folder), the level to read (0
+            the finest), else the finest whose Gaussians are within ``budget`` (default
+            :data:`dofview.io.lod.DEFAULT_BUDGET`).
 
     Raises:
         DofviewError: a missing, unreadable or malformed file, with the path and what is wrong.
     """
     from dofview.io import load_scene
 
-    scene = load_scene(path, progress=progress, spz_axes=spz_axes)
+    scene = load_scene(path, progress=progress, spz_axes=spz_axes, lod=lod, budget=budget)
     if colour_space is not None:
         scene.colour_space = colour_space
     return scene

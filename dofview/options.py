@@ -16,6 +16,7 @@ from dofview.camera import REFERENCE_WIDTH, Camera
 from dofview.errors import DofviewError
 from dofview.frame import BLADES_MAX, CUT_MODES, DOF_MODES, KERNELS, OPACITY_NORMS, RenderSettings
 from dofview.framing import UP_AXES
+from dofview.io.lod import DEFAULT_BUDGET as LOD_BUDGET
 from dofview.io.spz import AXES as SPZ_AXES
 from dofview.lens import BlurSpec, Lens
 from dofview.rendering import AUTO_ORDER, BACKENDS
@@ -41,6 +42,18 @@ def number(lo: float | None = None, hi: float | None = None, lo_open: bool = Fal
             raise argparse.ArgumentTypeError(f"{what} must be {'<' if hi_open else '≤'} {hi:g}, got {text}")
         return v
     return parse
+
+
+def gaussian_count(text: str) -> int:
+    """A number of Gaussians ≥ 1: a whole number, or one with a k (thousand) or M (million) suffix."""
+    scale = {"k": 1_000, "m": 1_000_000}.get(text[-1:].lower(), 1)
+    try:
+        v = float(text[:-1] if scale > 1 else text) * scale
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--budget must be a number of Gaussians (e.g. 3M, 500k), got {text!r}") from None
+    if not math.isfinite(v) or v < 1 or v != int(v):
+        raise argparse.ArgumentTypeError(f"--budget must be a whole number of Gaussians ≥ 1, got {text!r}")
+    return int(v)
 
 
 def vec3(text: str) -> tuple[float, float, float]:
@@ -126,6 +139,12 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--spz-axes", choices=SPZ_AXES,
                    help="the axes a .spz file's data is in: rub = the SPZ spec (default, or what the file records), "
                         "rdf = PLY axes as stored (files written by splat-transform)")
+    g = p.add_argument_group("streamed LOD sets (lod-meta.json)")
+    g.add_argument("--lod", type=number(0, None, integer=True, what="--lod"),
+                   help="the level to draw, 0 the finest (default: the finest within --budget; the viewer "
+                        "mixes levels, finer near the camera)")
+    g.add_argument("--budget", type=gaussian_count, default=None,
+                   help=f"most Gaussians drawn, e.g. 3M or 500k (default {LOD_BUDGET:,})")
 
 
 def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (800, 600)) -> None:

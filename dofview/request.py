@@ -19,6 +19,7 @@ from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.framing import UpGuess, count_in_view, guess_up, overview_camera
 from dofview.io.cameras import load_cameras_json, select_camera
+from dofview.io.lod import LodSet, is_lod_set, open_lod
 from dofview.lens import LensRequest, shutter_ev
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, operator_from_dict
@@ -35,6 +36,7 @@ class OpenedScene:
             --cameras nor --eye/--target was given; None without one.
         notes: lines about what was found or guessed, for :meth:`say_notes`.
         up: the world up for views without cameras, once :func:`up_from_args` has chosen it.
+        lod_set: the streamed LOD set ``scene`` is a level of (:mod:`dofview.io.lod`), or None.
     """
 
     scene: GaussianScene
@@ -42,6 +44,7 @@ class OpenedScene:
     cameras: Path | None
     notes: list[str] = field(default_factory=list)
     up: UpGuess | None = None
+    lod_set: LodSet | None = None
 
     def say_notes(self) -> None:
         """Print the noted lines to stderr, once: commands call it when their work is under way,
@@ -67,12 +70,14 @@ def open_scene(args: argparse.Namespace, progress: bool = True, cameras: Path | 
         notes.append(run.describe(len(load_cameras_json(found))))
     elif run.root is not None:
         notes.append(run.describe())
+    lod_set = open_lod(run.scene) if is_lod_set(run.scene) else None  # kept: the viewer streams from it
     scene = load_scene(run.scene, progress=progress, spz_axes=getattr(args, "spz_axes", None),
+                       lod=getattr(args, "lod", None), budget=getattr(args, "budget", None), lod_set=lod_set,
                        report=lambda line: print(line, file=sys.stderr))
     if getattr(args, "colour_space", None):
         scene.colour_space = args.colour_space
     use = given if given is not None else found if found is not None else None if explicit else cameras
-    return OpenedScene(scene, run.scene, use, notes)
+    return OpenedScene(scene, run.scene, use, notes, lod_set=lod_set)
 
 
 def camera_from_args(args: argparse.Namespace, opened: OpenedScene, default_size: tuple[int, int] = (800, 600),

@@ -24,6 +24,7 @@ READERS: dict[str, str] = {
     ".compressed.ply": "dofview.io.compressed_ply:read_compressed_ply",
     ".sog": "dofview.io.sog:read_sog",
     "meta.json": "dofview.io.sog:read_sog",  # an unbundled SOG (or give its folder)
+    "lod-meta.json": "dofview.io.lod:read_lod",  # a streamed LOD set of SOG chunks (or give its folder)
 }
 """File-name ending (lower case) → ``"module:function"`` that reads it. The longest matching ending wins."""
 
@@ -52,7 +53,8 @@ def load_scene(path: str | Path, progress: bool | Callable[[int, int], None] = T
     ``progress`` may instead be a ``progress(done, total)`` callback (the viewer's progress bar).
 
     ``options`` are keyword arguments for the readers that take them, e.g. ``spz_axes="rdf"`` for
-    :func:`dofview.io.spz.read_spz` or ``report=print`` (a one-line note on how the file was read);
+    :func:`dofview.io.spz.read_spz`, ``lod=1`` or ``budget=2_000_000`` for a streamed LOD set
+    (:func:`dofview.io.lod.read_lod`), or ``report=print`` (a one-line note on how the file was read);
     readers without such a parameter, and options given as None, are left alone.
 
     Raises:
@@ -60,8 +62,9 @@ def load_scene(path: str | Path, progress: bool | Callable[[int, int], None] = T
             (:meth:`GaussianScene.nothing_to_draw`), with the path and what is wrong.
     """
     path = Path(path)
-    if path.is_dir() and (path / "meta.json").is_file():  # an unbundled SOG folder
-        path = path / "meta.json"
+    for inside in ("lod-meta.json", "meta.json"):  # a streamed LOD set's folder, an unbundled SOG's
+        if path.is_dir() and (path / inside).is_file():
+            path = path / inside
     reader = _lookup(READERS, path, "read")
     if path.is_dir():
         raise DofviewError(f"{path}: is a directory, not a scene file")

@@ -50,6 +50,17 @@ def scene_from_arrays(path: Path, means: np.ndarray, quats_wxyz: np.ndarray, log
     Gaussians with a NaN or infinite value (a corrupt bound or codebook entry) are dropped with one
     :class:`DofviewWarning` that counts them, as the .ply reader does (all of them: a DofviewError).
     """
+    scene, ok = scene_and_finite(means, quats_wxyz, log_scales, opacities, sh_dc, sh_rest, name or path.name.split(".")[0])
+    report_dropped(path, ok)
+    if not ok.all():
+        scene = scene.subset(ok)
+    return scene
+
+
+def scene_and_finite(means: np.ndarray, quats_wxyz: np.ndarray, log_scales: np.ndarray, opacities: np.ndarray,
+                     sh_dc: np.ndarray, sh_rest: np.ndarray | None, name: str) -> tuple[GaussianScene, np.ndarray]:
+    """Every Gaussian of the decoded attributes (as :func:`scene_from_arrays` takes them) as an
+    sRGB scene, and (N,) bool which of them are finite (the others hold NaN or infinite values)."""
     q = np.asarray(quats_wxyz, np.float64)
     norm = np.linalg.norm(q, axis=1, keepdims=True)
     q = np.where(norm > 1e-30, q / np.maximum(norm, 1e-300), np.array([1.0, 0.0, 0.0, 0.0]))
@@ -59,8 +70,5 @@ def scene_from_arrays(path: Path, means: np.ndarray, quats_wxyz: np.ndarray, log
     if sh_rest is not None:
         ok &= np.isfinite(sh_rest).all((1, 2))
     scene = GaussianScene(means=means, quats=q, scales=scales, opacities=np.clip(opacities, 0.0, 1.0),
-                          sh_dc=sh_dc, sh_rest=sh_rest, colour_space="srgb", name=name or path.name.split(".")[0])
-    report_dropped(path, ok)
-    if not ok.all():
-        scene = scene.subset(ok)
-    return scene
+                          sh_dc=sh_dc, sh_rest=sh_rest, colour_space="srgb", name=name)
+    return scene, ok

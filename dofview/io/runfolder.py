@@ -81,7 +81,8 @@ def find_run(path: str | Path, iteration: int | None = None) -> RunFolder:
     """The scene file and cameras for ``path``: a run folder or a scene file.
 
     A folder must hold ``point_cloud/iteration_N/point_cloud.ply``; the highest N is taken unless
-    ``iteration`` names one; a folder holding ``meta.json`` is an unbundled SOG scene, read as such.
+    ``iteration`` names one; a folder holding ``lod-meta.json`` (a streamed LOD set) or ``meta.json`` (an
+    unbundled SOG) is a scene, read as such.
     A file is taken as it is; it has the run folder's ``cameras.json`` only when it sits where the
     trainer writes it, ``ROOT/point_cloud/iteration_N/point_cloud. py`` with ROOT holding
     ``cameras.json``. A ``cameras.json`` that merely lies in a folder above some scene file belongs to
@@ -94,8 +95,9 @@ def find_run(path: str | Path, iteration: int | None = None) -> RunFolder:
     path = Path(path)
     if path.is_dir():
         found = _iterations(path / "point_cloud")
-        if not found and iteration is None and (path / "meta.json").is_file():
-            return find_run(path / "meta.json")  # an unbundled SOG: a scene that is a folder
+        for inside in ("lod-meta.json", "meta.json"):  # a streamed LOD set, an unbundled SOG: folder scenes
+            if not found and iteration is None and (path / inside).is_file():
+                return find_run(path / inside)
         if not found:
             raise DofviewError(f"{path}: is a directory, neither a scene file nor a 3DGS run folder "
                                f"(no point_cloud/iteration_N/point_cloud.ply in it)")

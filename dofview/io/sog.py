@@ -27,6 +27,7 @@ from __future__ import annotations
 import io
 import json
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -216,9 +217,68 @@ def _open_meta(path: Path) -> tuple[_Files, dict]:
     return files, meta
 
 
-def read_sog(path: str | Path, progress: Callable[[int, int], None] | None = None) -> GaussianScene:
-    """Read a SOG bundle (``.sog`` zip), a folder holding ``meta.json``, or that ``meta.json``,
-    into an sRGB :class:`GaussianScene`. Versions 2 and 1.
+@dataclass
+class SogArrays:
+    """A SOG's Gaussians decoded, before any is dropped (shapes as :func:`scene_from_arrays` takes
+    them): means (N, 3), quats (N, 4) w x y z, log-scales (N, 3), opacities (N,), SH DC (N, 3),
+    SH rest (N, K−1, 3) or None, and the scene's name."""
+
+    means: np.ndarray
+    quats: np.ndarray
+    log_scales: np.ndarray
+    opacities: np.ndarray
+    sh_dc: np.ndarray
+    sh_rest: np.ndarray | None
+    name: str
+
+    @property
+    def count(self) -> int:
+        return int(self.means.shape[0])
+
+
+def sog_header(path: str | Path) -> tuple[int, int]:
+    """(Gaussians, SH degree) of a SOG from its meta.json alone (no image is decoded; a loose SOG's
+    images must exist): what a streamed LOD set checks its chunks against. A version 1 SOG with an
+    SH palette says no degree without its image: 3 is given (the most it can hold).
+
+    Raises:
+        SceneFormatError: as :func:`read_sog` for a missing file or a malformed meta.json.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise SceneFormatError(f"{path}: no such file")
+    files, meta = _open_meta(path)
+    files.close()
+    version, count = _version_count(path, meta)
+    if files.zip is None:  # a loose SOG: its images are files beside meta.json
+        for key in ("means", "quats", "scales", "sh0", *(("shN",) if "shN" in meta else ())):
+            for name in _field(path, meta, key, "files", kind=list):
+                if not isinstance(name, str) or not (files.folder / name).is_file():
+                    raise SceneFormatError(f"{path}: SOG file {files.folder / str(name)} is missing")
+    degree = 0 if "shN" not in meta else _field(path, meta, "shN", "bands", kind=int) if version == 2 else 3
+    if degree not in (0, *SH_COUNTS):
+        raise SceneFormatError(f"{path}: meta.json shN.bands is {degree} (expected 1–3)")
+    return count, degree
+
+
+def _version_count(path: Path, meta: dict) -> tuple[int, int]:
+    """(SOG version, Gaussians) that meta.json gives, both checked."""
+    version = meta.get("version", 1)
+    if version not in (1, 2):
+        raise SceneFormatError(f"{path}: unsupported SOG version {version!r} (dofview reads 1 and 2)")
+    if version == 2:
+        count = _field(path, meta, "count", kind=int)
+    else:
+        shape = _field(path, meta, "means", "shape", kind=list)
+        count = shape[0] if shape and isinstance(shape[0], int) and not isinstance(shape[0], bool) else -1
+    if count <= 0:
+        raise SceneFormatError(f"{path}: meta.json gives {count} Gaussians")
+    return version, count
+
+
+def decode_sog(path: str | Path) -> SogArrays:
+    """Every Gaussian of a SOG bundle, folder or meta.json, decoded (none dropped: see
+    :func:`read_sog`). Versions 2 and 1.
 
     Raises:
         SceneFormatError: a missing member, a malformed meta.json, an unreadable or wrongly sized
@@ -229,16 +289,7 @@ def read_sog(path: str | Path, progress: Callable[[int, int], None] | None = Non
         raise SceneFormatError(f"{path}: no such file")
     files, meta = _open_meta(path)
     try:
-        version = meta.get("version", 1)
-        if version not in (1, 2):
-            raise SceneFormatError(f"{path}: unsupported SOG version {version!r} (dofview reads 1 and 2)")
-        if version == 2:
-            count = _field(path, meta, "count", kind=int)
-        else:
-            shape = _field(path, meta, "means", "shape", kind=list)
-            count = shape[0] if shape and isinstance(shape[0], int) and not isinstance(shape[0], bool) else -1
-        if count <= 0:
-            raise SceneFormatError(f"{path}: meta.json gives {count} Gaussians")
+        version, count = _version_count(path, meta)
         lo = _pixels(files, meta, "means", 0, count)[:, :3].astype(np.float64)
         hi = _pixels(files, meta, "means", 1, count)[:, :3].astype(np.float64)
         mins, maxs = _numbers(path, meta, "means", "mins", length=3), _numbers(path, meta, "means", "maxs", length=3)
@@ -260,7 +311,21 @@ def read_sog(path: str | Path, progress: Callable[[int, int], None] | None = Non
         sh_rest = _sh_rest(files, meta, count, version)
     finally:
         files.close()
-    if progress:
-        progress(count, count)
     name = (path.parent if path.name.lower() == META else path).name.split(".")[0]
-    return scene_from_arrays(path, means, quats, log_scales, opacities, sh_dc, sh_rest, name=name)
+    return SogArrays(means, quats, log_scales, opacities, sh_dc, sh_rest, name)
+
+
+def read_sog(path: str | Path, progress: Callable[[int, int], None] | None = None) -> GaussianScene:
+    """Read a SOG bundle (``.sog`` zip), a folder holding ``meta.json``, or that ``meta.json``,
+    into an sRGB :class:`GaussianScene` (:func:`decode_sog`; Gaussians with a non-finite value
+    dropped with a warning). Versions 2 and 1.
+
+    Raises:
+        SceneFormatError: a missing member, a malformed meta.json, an unreadable or wrongly sized
+            image.
+    """
+    path = Path(path)
+    a = decode_sog(path)
+    if progress:
+        progress(a.count, a.count)
+    return scene_from_arrays(path, a.means, a.quats, a.log_scales, a.opacities, a.sh_dc, a.sh_rest, name=a.name)

@@ -119,12 +119,16 @@ class Renderer(ABC):
         return self._encoded
 
     # ---- buffers ---------------------------------------------------------------------------
-    def _upload(self, scene: GaussianScene, packed: bool, scale: float) -> dict[int, moderngl.Buffer]:
+    def _upload(self, scene: GaussianScene, packed: bool, scale: float,
+                arrays: dict[int, np.ndarray] | None = None) -> dict[int, moderngl.Buffer]:
         """The scene's storage buffers by binding, packed and written UPLOAD_CHUNK Gaussians at a time:
         host memory holds one chunk's packed copy, not the whole scene's (issue 7: a load peaks at
-        ≤ 2× the file size). Arrays go in through the buffer protocol, without a bytes copy."""
+        ≤ 2× the file size). Arrays go in through the buffer protocol, without a bytes copy.
+        ``arrays``: the whole scene's, packed beforehand (:func:`~dofview.rendering.packing.gpu_arrays`)."""
         if not scene.count:
             return {0: self.ctx.buffer(np.zeros(16, np.uint32))}
+        if arrays is not None:
+            return {b: self.ctx.buffer(np.ascontiguousarray(a)) for b, a in arrays.items()}
         buffers: dict[int, moderngl.Buffer] = {}
         per_gaussian: dict[int, int] = {}
         for start in range(0, scene.count, UPLOAD_CHUNK):
@@ -135,6 +139,43 @@ class Renderer(ABC):
                     buffers[b] = self.ctx.buffer(reserve=-(-per_gaussian[b] * scene.count // 4) * 4)
                 buffers[b].write(np.ascontiguousarray(a), offset=start * per_gaussian[b])
         return buffers
+
+    def swap_scene(self, scene: GaussianScene, arrays: dict[int, np.ndarray] | None = None,
+                   order: tuple[Camera, np.ndarray] | None = None) -> None:
+        """Draw ``scene`` from now on in place of the current one, keeping the programs, targets and
+        settings (the viewer swaps the chunks of a streamed LOD set it draws as the camera moves).
+        ``scene`` has the current scene's SH degree (the programs are built for it); its colours are
+        stored with the current :attr:`colour_scale` (beyond it they saturate).
+
+        Work that need not hold up the caller's thread can be done before, on another thread:
+        ``arrays``: ``scene``'s storage arrays, ``packing.gpu_arrays(scene, self.packed,
+        self.colour_scale)``; ``order``: (camera, its (N,) front-to-back order of ``scene``,
+        ``depth_order.front_to_back``), drawn for that camera's view instead of sorting it again.
+        Without ``order`` the next draw sorts.
+
+        Raises:
+            DofviewError: this backend cannot hold ``scene`` (:meth:`require`: BackendUnavailable,
+                or a buffer over the GL's limit); the current scene stays.
+            ValueError: ``scene`` has another SH degree.
+        """
+        if scene.sh_degree != self.scene.sh_degree:
+            raise ValueError(f"a swapped scene keeps the SH degree {self.scene.sh_degree}, not {scene.sh_degree}")
+        self.require(self.ctx, scene.count)
+        buffers = self._upload(scene, self.packed, self.colour_scale, arrays)
+        for b in self._buffers.values():
+            b.release()
+        self._buffers, self.scene = buffers, scene
+        self.stats.total = scene.count
+        self._view_key = None
+        if self._sliced is not None:  # it keeps per-Gaussian data of the scene it was made for
+            self._sliced.release()
+            self._sliced = None
+        self._scene_swapped(order)
+
+    def _scene_swapped(self, order: tuple[Camera, np.ndarray] | None) -> None:
+        """The backend's part of :meth:`swap_scene`, after the scene's buffers: size its own
+        per-Gaussian buffers for :attr:`scene`, drop what it held of the old scene's order, and
+        take ``order`` (camera, front-to-back order) as the order of that camera's view if given."""
 
     def _bind_scene(self) -> None:
         """Bind the scene's storage buffers at the bindings the fetch_*.glsl files read."""

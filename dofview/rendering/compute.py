@@ -80,7 +80,7 @@ class ComputeBackend(Renderer):
                  max_pairs: int | None = None, tile: int | None = None, pix: int | None = None) -> None:
         super().__init__(scene, ctx, packed)
         self.limit = max_buffer_bytes(self.ctx)
-        n = max(scene.count, 1)
+        n = max(scene.count, 1)  # GL refuses zero-sized buffers
         self.max_pairs = min(max_pairs or self.limit // 4, self.limit // 4)
         """Most (tile, Gaussian) pairs one pass holds; a frame with more is drawn in depth slices."""
         llvmpipe = "llvmpipe" in self.ctx.info["GL_RENDERER"]
@@ -103,12 +103,8 @@ class ComputeBackend(Renderer):
         self._longest_prog = compute_shader(self.ctx, "tiles_longest.comp")
         self._blend = compute_shader(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u",
                                                               **({"KERNEL_SELECT": 1} if llvmpipe else {})})
-        self._order = self.ctx.buffer(reserve=4 * n)
-        self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)
-        self._rects = self.ctx.buffer(reserve=8 * n)
-        self._offsets = self.ctx.buffer(reserve=4 * (n + 1))
-        self._depth_keys = self._offsets  # the sort's keys, dead once sorted: the counts reuse them
-        self._group_totals = self.ctx.buffer(reserve=4 * -(-(n + 1) // 256))
+        self._capacity = 0
+        self._per_gaussian_buffers(n)
         self._longest = self.ctx.buffer(reserve=4)
         self._pairs: list[moderngl.Buffer] = []  # tile keys, values, and the two sort scratch buffers
         self._pair_capacity = 0
@@ -158,6 +154,31 @@ class ComputeBackend(Renderer):
         return np.frombuffer(self._order.read(size=4 * self.scene.count), np.uint32).copy()
 
     # ---- buffers -------------------------------------------------------------------------------
+    def _per_gaussian_buffers(self, n: int) -> None:
+        """The order, splat, tile-rectangle, offset and scan buffers for ``n`` Gaussians (kept when
+        they hold that many)."""
+        if n <= self._capacity:
+            return
+        if self._capacity:
+            for b in (self._order, self._splats, self._rects, self._offsets, self._group_totals):
+                b.release()
+        self._order = self.ctx.buffer(reserve=4 * n)
+        self._splats = self.ctx.buffer(reserve=SPLAT_BYTES * n)
+        self._rects = self.ctx.buffer(reserve=8 * n)
+        self._offsets = self.ctx.buffer(reserve=4 * (n + 1))
+        self._depth_keys = self._offsets  # the sort's keys, dead once sorted: the counts reuse them
+        self._group_totals = self.ctx.buffer(reserve=4 * -(-(n + 1) // 256))
+        self._capacity = n
+
+    def _scene_swapped(self, order: tuple[Camera, np.ndarray] | None) -> None:
+        """Per-Gaussian buffers for the new count; ``order`` written as the order of its camera's view."""
+        self._per_gaussian_buffers(max(self.scene.count, 1))
+        self._binned = False
+        if order is not None and self.scene.count:
+            camera, ftb = order
+            self._order.write(np.ascontiguousarray(ftb, dtype=np.uint32))
+            self._view_key = camera.view_key()
+
     def _pair_buffers(self, pairs: int) -> list[moderngl.Buffer]:
         """Tile keys, values and sort scratch for ``pairs`` pairs (grown by half again, never past
         the storage-buffer limit)."""

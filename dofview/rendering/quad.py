@@ -108,6 +108,23 @@ class QuadBackend(Renderer):
     def sort_pending(self) -> bool:
         return self._awaiting is not None or (self._thread is not None and self._thread.pending)
 
+    def _scene_swapped(self, order: tuple[Camera, np.ndarray] | None) -> None:
+        """An order buffer for the new count; the sort thread (which may be sorting the old means)
+        is let go and the next background sort starts a new one; ``order`` becomes the order in use,
+        and the view asked for, so the views that follow are sorted in the background."""
+        if self._order.size < 4 * max(self.scene.count, 1):
+            self._order.release()
+            self._order = self.ctx.buffer(reserve=4 * max(self.scene.count, 1))
+        if self._thread is not None:
+            self._thread.close(wait=False)
+            self._thread = None
+        self._host_order = np.zeros(0, np.uint32)
+        self._requested = self._awaiting = None
+        if order is not None:
+            camera, ftb = order
+            self._upload_order(ftb[::-1], camera.view_key())
+            self._requested = self._view_key
+
     # ---- drawing -------------------------------------------------------------------------------
     def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
         p = self.program

@@ -58,11 +58,13 @@ class SortThread:
         with self._cond:
             return self._busy or self._request is not None
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
+        """Stop the worker; ``wait``: until a sort it is running ends (else it ends on its own)."""
         with self._cond:
             self._stop = True
             self._cond.notify()
-        self._thread.join(timeout=5.0)
+        if wait:
+            self._thread.join(timeout=5.0)
 
     def _run(self) -> None:
         while True:

@@ -69,7 +69,8 @@ def run_view(args: argparse.Namespace) -> int:
     window = Window("dofview", args.width or DEFAULT_WINDOW[0], args.height or DEFAULT_WINDOW[1],
                     on_drop=lambda paths: viewer.model.open_file(paths[0]))
     viewer = Viewer(window, scene, opened.path, settings, start, cameras,
-                    None if cameras else up_from_args(args, opened), raster=args.raster)
+                    None if cameras else up_from_args(args, opened), raster=args.raster,
+                    lod_set=opened.lod_set, budget=args.budget, lod=args.lod)
     opened.say_notes()
     names = [c.name for c in cameras]
     if opened.cameras and start.name in names:

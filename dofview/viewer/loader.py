@@ -12,6 +12,7 @@ from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.io import load_scene
 from dofview.io.cameras import load_cameras_json
+from dofview.io.lod import LodSet, is_lod_set, open_lod
 from dofview.io.runfolder import find_run
 from dofview.scene import GaussianScene
 
@@ -22,12 +23,15 @@ class SceneLoad:
     Poll :attr:`done`; then either :attr:`scene` is set, or :attr:`error` holds a one-line message.
     :attr:`fraction` (0…1) and :attr:`elapsed` (s) drive the progress bar meanwhile. A run folder,
     or a file with a ``cameras.json`` near it (dofview.io.runfolder), also fills :attr:`cameras`,
-    and :attr:`found` says what was found.
+    and :attr:`found` says what was found. A streamed LOD set is read at its finest level within
+    ``budget`` Gaussians, and :attr:`lod_set` keeps it (the viewer streams its other chunks).
     """
 
-    def __init__(self, path: str | Path, colour_space: str | None = None) -> None:
+    def __init__(self, path: str | Path, colour_space: str | None = None, budget: int | None = None) -> None:
         self.path = Path(path)
         self.colour_space = colour_space
+        self.budget = budget
+        self.lod_set: LodSet | None = None
         self.fraction = 0.0
         self.scene: GaussianScene | None = None
         self.cameras: list[Camera] = []
@@ -59,7 +63,8 @@ class SceneLoad:
             if run.cameras is not None or run.root is not None:
                 self.found = run.describe(len(self.cameras) if self.cameras else None)
             self.path = run.scene
-            scene = load_scene(self.path, progress=self._progress)
+            self.lod_set = open_lod(self.path) if is_lod_set(self.path) else None
+            scene = load_scene(self.path, progress=self._progress, budget=self.budget, lod_set=self.lod_set)
             if self.colour_space:
                 scene.colour_space = self.colour_space
             self.scene = scene

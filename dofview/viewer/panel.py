@@ -221,7 +221,7 @@ def _tonemap(v: "PanelHost") -> None:
             s.tonemap_params = {**s.tonemap_params, f.name: new}
     if op.adaptive:
         _, s.stats_lock = imgui.checkbox("lock adaptation", s.stats_lock)
-        st = v.model.smoother.state
+        st = v.model.tone.smoother.state
         if st is not None:
             imgui.text_disabled(f"key 2^{st.key:+.2f}, 1-99%: 2^{st.lo:+.2f}..2^{st.hi:+.2f}")
 
@@ -261,7 +261,16 @@ def _status(v: "PanelHost") -> None:
                      graph_size=imgui.ImVec2(-1, 40))
     imgui.text(f"Gaussians drawn {st.drawn:,} of {st.total:,}")
     n = v.model.progressive.samples
-    imgui.text(f"thin lens: {n} sub-aperture passes" if n > 1 else "thin lens: single pass")
+    if v.model.previewing:  # the view moves: the preview the interaction budget affords
+        imgui.text(f"moving: {v.model.preview} (budget {v.model.interaction.budget_ms:.0f} ms)")
+    else:
+        imgui.text(f"thin lens: {n} sub-aperture passes" if n > 1 else "thin lens: single pass")
+    stream = v.model.stream
+    if stream is not None:  # a streamed LOD set: how many leaves each level draws
+        levels = np.bincount(stream.choice + 1, minlength=v.model.lod_set.levels + 1)
+        drops = f", {levels[0]} left out" if levels[0] else ""
+        imgui.text_disabled(f"LOD leaves by level {'/'.join(map(str, levels[1:]))}{drops}; "
+                            f"budget {v.model.budget / 1e6:.3g}M")
     cam = v.model.camera()
     imgui.text_disabled(f"{cam.width}×{cam.height} px, fov {cam.fov_x_deg:.1f}°, {v.model.scene_path.name}")
 

@@ -31,7 +31,8 @@ class Viewer:
     (help, fly mode, the panel's file fields, the script's capture queues)."""
 
     def __init__(self, window: Window, scene: GaussianScene, scene_path: Path, settings: ViewerSettings,
-                 camera: Camera, cameras: list[Camera], up: UpGuess | None = None, raster: str = "auto") -> None:
+                 camera: Camera, cameras: list[Camera], up: UpGuess | None = None, raster: str = "auto",
+                 **lod: object) -> None:
         self.window = window
         self.ctx = window.ctx
         self.show_help = False
@@ -47,7 +48,9 @@ class Viewer:
         # where the panel drew its parts, window units (panel.draw_ui; the tests check the layout)
         self.panel_layout: dict[str, float | list[float]] = {}
         self.handle_input = InputHandler()
-        self.model = ViewerModel(self.ctx, self._image_size, scene, scene_path, settings, camera, cameras, up, raster)
+        # lod: the streamed LOD set the scene is a level of, and its budget or level (ViewerModel's)
+        self.model = ViewerModel(self.ctx, self._image_size, scene, scene_path, settings, camera, cameras, up, raster,
+                                 **lod)
         self._titled: int | None = None  # the model's scene generation the title names
         self._title()
 
@@ -124,7 +127,8 @@ class Viewer:
         return {
             **self.model.report(), "show_help": self.show_help, "fly_mode": self.fly_mode, "frames": self.frames,
             "times": {"frame_ms": self.times.frame_ms, "splat_ms": self.times.splat_ms,
-                      "status": self.times.status(self.model.renderer.stats.sort_ms)},
+                      "status": self.times.status(self.model.renderer.stats.sort_ms),
+                      "history_ms": [round(t, 1) for t in self.times.periods]},
             "clipboard": self.window.clipboard(),
             # ImGui's state after the last frame: a text field being edited takes the keys
             "keyboard_captured": imgui.get_io().want_capture_keyboard, "ui_active": imgui.is_any_item_active(),
