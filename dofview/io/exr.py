@@ -13,7 +13,6 @@ file is written through a temporary file (see atomic.py), so a failure never lea
 from __future__ import annotations
 
 import struct
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +27,14 @@ HALF_MAX = 65504.0
 DEEP_CHANNELS = ("R", "G", "B", "A", "Z", "ZBack")
 """The channels of a deep image, as dofview writes them (each sample's premultiplied linear colour
 and alpha, and the camera depths of its front and back)."""
-ZIP_LEVEL = 4  # zlib level of the deep writer: the OpenEXR library's default for ZIP(S)
+try:  # Intel ISA-L's deflate (the optional `deep` extra): the same zlib stream, ~10× faster here
+    from isal.isal_zlib import compress as _deflate
+
+    ZIP_LEVEL = 1  # ISA-L levels run 0–3
+except ImportError:  # pragma: no cover - depends on the installation
+    from zlib import compress as _deflate
+
+    ZIP_LEVEL = 4  # the OpenEXR library's default for ZIP(S)
 
 
 def write_exr(path: str | Path, rgba: np.ndarray, depth: np.ndarray | None = None, half: bool = False,
@@ -219,14 +225,16 @@ def write_deep_exr(path: str | Path, counts: np.ndarray, channels: dict[str, np.
 
 def _zips(raw: bytes) -> bytes:
     """One chunk's bytes as OpenEXR's ZIP compressors store them: the even bytes then the odd ones,
-    each byte replaced by its difference to the one before (+128, modulo 256), zlib-compressed;
-    the raw bytes themselves when that is no smaller (the reader tells them by their size)."""
+    each byte replaced by its difference to the one before (+128, modulo 256), as a zlib stream
+    (ISA-L's where installed: docs/BENCHMARKS.md, "Deep output", measured it 10× faster than
+    zlib's on deep samples); the raw bytes themselves when that is no smaller (the reader tells
+    them by their size)."""
     if not raw:
         return raw
     b = np.frombuffer(raw, np.uint8)
     split = np.concatenate([b[0::2], b[1::2]])
     split[1:] = np.diff(split) + np.uint8(128)  # uint8 arithmetic wraps modulo 256
-    packed = zlib.compress(split.tobytes(), ZIP_LEVEL)
+    packed = _deflate(split.tobytes(), ZIP_LEVEL)
     return packed if len(packed) < len(raw) else raw
 
 
