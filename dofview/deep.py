@@ -78,7 +78,8 @@ class DeepSettings:
         if unknown:
             raise DofviewError(f"deep settings: unknown entry {unknown[0]!r}")
         try:
-            return cls(float(d.get("tolerance", DEFAULT_TOLERANCE)), int(d.get("cap", DEFAULT_CAP)))  # type: ignore[arg-type]
+            return cls(float(d.get("tolerance", DEFAULT_TOLERANCE)),  # type: ignore[arg-type]
+                       int(d.get("cap", DEFAULT_CAP)))  # type: ignore[call-overload]
         except (TypeError, ValueError) as e:
             raise DofviewError(f"deep settings: malformed entry ({e})") from None
 

@@ -1,8 +1,10 @@
 """Deep output measured (issue 29, docs/BENCHMARKS.md "Deep output", docs/COMPOSITING.md).
 
-    python -m dofview.bench.deep SCENE[:EYE:TARGET] … [--width 480] [--raster compute] [--tolerance 0.003,0.01,0.03]
+    python -m dofview.bench.deep SCENE[:EYE:TARGET[:UP]] SCENE@CAMERAS.json … [--width 480] [--raster compute]
+                                 [--tolerance 0.003,0.01,0.03] [--colour-space linear]
 
-For each scene (framed automatically, or from EYE=x,y,z to TARGET=x,y,z) and each tolerance, in
+For each scene (framed automatically, from EYE=x,y,z to TARGET=x,y,z with world UP (default
+0,-1,0) and a 70° field of view, or the first view of a cameras.json) and each tolerance, in
 one process: the samples per pixel (mean over all pixels and over covered ones, 99th percentile,
 most), the deep file's size per megapixel, its write time over the flat EXR's on the same frame,
 the deep pass's time over the flat render's, flatten(deep) against the flat EXR, the same with
@@ -21,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dofview.api import exr_header, load, save_deep
+from dofview.api import exr_header, load, load_cameras, save_deep
 from dofview.bench.metrics import psnr
 from dofview.bench.primitives import dc_from_colour
 from dofview.camera import Camera, framing_camera, look_at
@@ -35,8 +37,9 @@ from dofview.tonemap import Tonemap, decode, encode
 CARD_COLOUR = (0.2, 0.7, 0.3)
 
 
-def card(camera: Camera, depth: float, like: GaussianScene, box: tuple[float, float, float, float] = (0.1, 0.6, 0.2, 0.9),
-         colour: tuple[float, float, float] = CARD_COLOUR, spacing_px: float = 1.5, opacity: float = 0.9) -> GaussianScene:
+def card(camera: Camera, depth: float, like: GaussianScene,
+         box: tuple[float, float, float, float] = (0.1, 0.6, 0.2, 0.9), colour: tuple[float, float, float] = CARD_COLOUR,
+         spacing_px: float = 1.5, opacity: float = 0.9) -> GaussianScene:
     """A synthetic CG card as Gaussians: a plane facing ``camera`` at camera depth ``depth`` (scene
     units) over ``box`` (x0, x1, y0, y1, fractions of the image from its top-left corner), flat
     splats every ``spacing_px`` pixels of opacity ``opacity`` and base colour ``colour``, in the SH
@@ -95,7 +98,8 @@ def decoded_per_sample(image: DeepFrame) -> DeepFrame:
         s = start[px] + k
         linear[px] += trans[px, None] * rgba[s, :3]
         after = encode(linear[px])  # the blend's running sum in its own space
-        own = (after - encoded_before[px]) / np.maximum(trans[px, None], 1e-30)  # this sample's encoded premultiplied colour
+        # this sample's premultiplied colour in the blend's own space
+        own = (after - encoded_before[px]) / np.maximum(trans[px, None], 1e-30)
         alpha = image.rgba[s, 3].astype(np.float64)
         rgba[s, :3] = decode(own / np.maximum(alpha[:, None], 1e-30)) * alpha[:, None]
         encoded_before[px] = after
@@ -103,38 +107,44 @@ def decoded_per_sample(image: DeepFrame) -> DeepFrame:
     return DeepFrame(image.counts, rgba, image.depth)
 
 
-def measure(scene: GaussianScene, camera: Camera, raster: str, deep: DeepSettings, folder: Path) -> dict[str, float]:
-    """One scene, view and tolerance: the figures of the module docstring."""
+def measure(scene: GaussianScene, camera: Camera, raster: str, deep: DeepSettings, folder: Path,
+            repeats: int = 3) -> dict[str, float]:
+    """One scene, view and tolerance: the figures of the module docstring (times: the median of
+    ``repeats`` runs of each, flat and deep taken in turn, after one unmeasured run of each)."""
     renderer = get_backend(raster, scene)
     pinhole, settings = Lens(1.0, 0.0), RenderSettings()
+    header = exr_header(camera, pinhole, Tonemap(), settings, scene.colour_space, "scene")
+    flat_path, deep_path = folder / "flat.exr", folder / "deep.exr"
+    times: dict[str, list[float]] = {"render": [], "deep": [], "write": [], "write_deep": []}
     try:
-        renderer.render(camera, pinhole, settings)  # shaders compiled, order sorted, before timing
-        renderer.deep(camera, pinhole, settings, deep)
-        t0 = time.perf_counter()
-        frame = renderer.render(camera, pinhole, settings)
-        t1 = time.perf_counter()
-        image = renderer.deep(camera, pinhole, settings, deep)
-        t2 = time.perf_counter()
+        for run in range(repeats + 1):
+            t0 = time.perf_counter()
+            frame = renderer.render(camera, pinhole, settings)
+            t1 = time.perf_counter()
+            image = renderer.deep(camera, pinhole, settings, deep)
+            t2 = time.perf_counter()
+            frame.meta = header
+            frame.save_exr(flat_path)
+            t3 = time.perf_counter()
+            save_deep(image, deep_path, header, deep, 0.0)
+            t4 = time.perf_counter()
+            if run:  # the first run compiles shaders and sorts
+                for key, dt in zip(times, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+                    times[key].append(dt)
     finally:
         renderer.release()
-    header = exr_header(camera, pinhole, Tonemap(), settings, scene.colour_space, "scene")
-    frame.meta = header
-    flat_path, deep_path = folder / "flat.exr", folder / "deep.exr"
-    w0 = time.perf_counter()
-    frame.save_exr(flat_path)
-    w1 = time.perf_counter()
-    save_deep(image, deep_path, header, deep, 0.0)
-    w2 = time.perf_counter()
+    med = {k: float(np.median(v)) for k, v in times.items()}
     megapixels = camera.width * camera.height / 1e6
     peak = max(1.0, float(frame.rgba.max()))
     stats = image.sample_stats()
     covered = image.counts[image.counts > 0]
     out = {"mean": stats["mean"], "mean_covered": float(covered.mean()) if covered.size else 0.0,
            "p99": stats["p99"], "max": stats["max"], "mb_per_mp": deep_path.stat().st_size / 1e6 / megapixels,
-           "flat_mb_per_mp": flat_path.stat().st_size / 1e6 / megapixels, "write_ratio": (w2 - w1) / (w1 - w0),
-           "deep_ms": (t2 - t1) * 1e3, "render_ratio": (t2 - t1) / (t1 - t0),
+           "flat_mb_per_mp": flat_path.stat().st_size / 1e6 / megapixels,
+           "write_ratio": med["write_deep"] / med["write"], "render_ratio": med["deep"] / med["render"],
            "flatten_db": psnr(DeepFrame.load(deep_path).flatten(), frame.rgba, peak)}
-    out["per_sample_db"] = psnr(decoded_per_sample(image).flatten(), frame.rgba, peak) if scene.colour_space == "srgb" else math.nan
+    encoded = scene.colour_space == "srgb"
+    out["per_sample_db"] = psnr(decoded_per_sample(image).flatten(), frame.rgba, peak) if encoded else math.nan
     out["card_db"], out["card_depth"] = card_insertion(scene, camera, raster, image)
     return out
 
@@ -158,13 +168,18 @@ def card_insertion(scene: GaussianScene, camera: Camera, raster: str, image: Dee
     return psnr(merged, truth, max(1.0, float(truth.max()))), depth
 
 
-def _view(spec: str, width: int) -> tuple[GaussianScene, Camera, str]:
+def _view(spec: str, width: int, colour_space: str | None = None) -> tuple[GaussianScene, Camera, str]:
+    if "@" in spec:
+        path, cameras = spec.split("@")
+        view = load_cameras(cameras)[0]
+        return (load(path, colour_space=colour_space), view.resized(width, round(view.height * width / view.width)),
+                Path(path).name)
     path, *where = spec.split(":")
-    scene = load(path)
+    scene = load(path, colour_space=colour_space)
     height = width * 3 // 4
     if where:
-        eye, target = (np.array([float(v) for v in p.split(",")]) for p in where)
-        return scene, look_at(eye, target, width, height, 70.0), Path(path).name
+        eye, target, *up = (np.array([float(v) for v in p.split(",")]) for p in where)
+        return scene, look_at(eye, target, width, height, 70.0, *up), Path(path).name
     return scene, framing_camera(scene, width, height), Path(path).name
 
 
@@ -174,15 +189,17 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--width", type=int, default=480)
     p.add_argument("--raster", default="compute")
     p.add_argument("--tolerance", default="0.01", help="comma-separated relative tolerances")
+    p.add_argument("--colour-space", choices=("srgb", "linear"), help="read the scenes as this (default: as they say)")
+    p.add_argument("--repeats", type=int, default=3, help="timed runs of each variant (the median is taken)")
     args = p.parse_args(argv)
     print("| scene | tolerance | samples/px mean (covered) | p99 | max | deep MB/MP (flat) | write ÷ flat | "
           "deep pass ÷ flat render | flatten dB | per-sample decode dB | card dB (depth) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for spec in args.scenes:
-            scene, camera, name = _view(spec, args.width)
+            scene, camera, name = _view(spec, args.width, args.colour_space)
             for tol in (float(t) for t in args.tolerance.split(",")):
-                m = measure(scene, camera, args.raster, DeepSettings(tol), Path(tmp))
+                m = measure(scene, camera, args.raster, DeepSettings(tol), Path(tmp), args.repeats)
                 print(f"| {name} | {tol:g} | {m['mean']:.2f} ({m['mean_covered']:.2f}) | {m['p99']:.0f} | {m['max']} | "
                       f"{m['mb_per_mp']:.1f} ({m['flat_mb_per_mp']:.1f}) | {m['write_ratio']:.2f} | "
                       f"{m['render_ratio']:.2f} | {m['flatten_db']:.1f} | {m['per_sample_db']:.1f} | "

@@ -5,14 +5,16 @@ with R, G, B, A, Z and ZBack).
 Flat images go through the OpenEXR library. Deep images are written here, straight from flat
 sample arrays, following the OpenEXR 2 file layout (openexr.com, "OpenEXR File Layout": a
 single-part deep scanline file, one scan line per chunk, ZIPS compression): the library's Python
-binding takes a deep image only as one numpy array per pixel and channel, which took 30× the flat
-image's write time on a 720p frame; the files are read back by the library in the tests. Every
-file is written through a temporary file (see atomic.py), so a failure never leaves half an image.
+binding takes a deep image only as one numpy array per pixel and channel, too slow to build for
+millions of pixels; the files are read back by the library in the tests. Every file is written
+through a temporary file (see atomic.py), so a failure never leaves half an image.
 """
 
 from __future__ import annotations
 
+import os
 import struct
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +26,8 @@ from dofview.io.atomic import atomic_output
 from dofview.lens import PhysicalLens
 
 HALF_MAX = 65504.0
-DEEP_CHANNELS = ("R", "G", "B", "A", "Z", "ZBack")
-"""The channels of a deep image, as dofview writes them (each sample's premultiplied linear colour
-and alpha, and the camera depths of its front and back)."""
-try:  # Intel ISA-L's deflate (the optional `deep` extra): the same zlib stream, ~10× faster here
+# Intel ISA-L's deflate (the optional `deep` extra): the same zlib stream, deep files written ~4× faster
+try:
     from isal.isal_zlib import compress as _deflate
 
     ZIP_LEVEL = 1  # ISA-L levels run 0–3
@@ -203,13 +203,16 @@ def write_deep_exr(path: str | Path, counts: np.ndarray, channels: dict[str, np.
     head = struct.pack("<ii", 20000630, 2 | _DEEP_FLAG | (_LONG_NAMES_FLAG if long_names else 0))
     head += b"".join(name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(value)) + value
                      for name, kind, value in attrs) + b"\0"
-    chunks = []
-    for y in range(h):
+
+    def chunk(y: int) -> bytes:
         table = _zips(ends[y].astype("<i4").tobytes())
         lo, hi = row_start[y], row_start[y + 1]
         raw = b"".join(data[n][lo:hi].astype("<f4", copy=False).tobytes() for n in names)
         packed = _zips(raw)
-        chunks.append(struct.pack("<iQQQ", y, len(table), len(packed), len(raw)) + table + packed)
+        return struct.pack("<iQQQ", y, len(table), len(packed), len(raw)) + table + packed
+
+    with ThreadPoolExecutor(os.cpu_count()) as pool:  # deflate lets go of the GIL: lines compress in parallel
+        chunks = list(pool.map(chunk, range(h)))
     first = len(head) + 8 * h
     offsets = first + np.concatenate([[0], np.cumsum([len(c) for c in chunks[:-1]], dtype=np.int64)]) if h else []
     with atomic_output(path) as tmp:
@@ -226,9 +229,9 @@ def write_deep_exr(path: str | Path, counts: np.ndarray, channels: dict[str, np.
 def _zips(raw: bytes) -> bytes:
     """One chunk's bytes as OpenEXR's ZIP compressors store them: the even bytes then the odd ones,
     each byte replaced by its difference to the one before (+128, modulo 256), as a zlib stream
-    (ISA-L's where installed: docs/BENCHMARKS.md, "Deep output", measured it 10× faster than
-    zlib's on deep samples); the raw bytes themselves when that is no smaller (the reader tells
-    them by their size)."""
+    (ISA-L's where installed: docs/BENCHMARKS.md, "Deep output", measured whole writes 4× faster
+    than with zlib's); the raw bytes themselves when that is no smaller (the reader tells them by
+    their size)."""
     if not raw:
         return raw
     b = np.frombuffer(raw, np.uint8)

@@ -19,9 +19,9 @@ import numpy as np
 
 from dofview.camera import Camera
 from dofview.errors import BackendUnavailable, DofviewError
+from dofview.deep import DeepSettings
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.deep import DeepSettings
 from dofview.rendering.base import Renderer
 from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
 from dofview.rendering.gl import compute_shader
@@ -133,7 +133,8 @@ class ComputeBackend(Renderer):
         """Bytes of GPU storage: the scene's buffers, the per-Gaussian buffers and the pair
         buffers as now allocated (they grow to the largest frame drawn)."""
         own = (self._order, self._splats, self._rects, self._offsets, self._group_totals, *self._pairs)
-        return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes
+        deep = self._deep_walk.gpu_bytes if self._deep_walk is not None else 0  # (after a deep image)
+        return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes + deep
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
@@ -364,14 +365,15 @@ class ComputeBackend(Renderer):
         prog["u_tau"].value = settings.tau
         prog["u_tiles_x"].value = self._tiles[0]
         prog["u_size"].value = (camera.width, camera.height)
-        binned: list[int] = []  # the slice whose pairs are binned now
+        binned = -1  # the slice whose pairs are binned now
 
         def walk(r0: int, r1: int, emit: bool) -> None:
+            nonlocal binned
             rows = ((camera.height - r1) // self.tile, -(-(camera.height - r0) // self.tile))  # its tile rows (GL)
             for i, piece in enumerate(slices):
-                if binned != [i]:
+                if binned != i:
                     self._bin(*piece)
-                    binned[:] = [i]
+                    binned = i
                 runs = passes(self._longest_range(self._tiles) if take is not None else 0, take)
                 for j, (skip, n) in enumerate(runs):
                     walker.set_pass(prog, resume=i > 0 or j > 0, last=i == len(slices) - 1 and j == len(runs) - 1)

@@ -35,7 +35,8 @@ def band_items(ctx: moderngl.Context) -> int:
     return min(BAND_ITEMS, int(ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]) // 16)
 
 
-def split_rows(per_row: np.ndarray, budget: int, what: str, width: int = 0, max_pixels: int = 0) -> list[tuple[int, int]]:
+def split_rows(per_row: np.ndarray, budget: int, what: str, width: int = 0,
+               max_pixels: int = 0) -> list[tuple[int, int]]:
     """Consecutive row ranges (r0, r1), ends exclusive, covering ``per_row`` (items in each image
     row), each holding at most ``budget`` items and, when given, ``max_pixels`` pixels of rows
     ``width`` wide (a band always takes at least one row).

@@ -50,8 +50,9 @@ class QuadBackend(Renderer):
 
     @property
     def gpu_bytes(self) -> int:
-        """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer)."""
-        return super().gpu_bytes + self._order.size
+        """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer; the A-buffer's
+        after a deep image)."""
+        return super().gpu_bytes + self._order.size + (self._abuffer.gpu_bytes if self._abuffer is not None else 0)
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
@@ -183,6 +184,12 @@ class ABuffer:
         self._buffers: dict[str, moderngl.Buffer] = {}
         self._fbo: moderngl.Framebuffer | None = None
 
+    @property
+    def gpu_bytes(self) -> int:
+        """Bytes of the fragment lists and the walk's buffers, as now allocated (they grow to the
+        largest band drawn: at most deep_gpu.band_items fragments, 32 B each)."""
+        return sum(b.size for b in self._buffers.values()) + self.walker.gpu_bytes + self.sorter.gpu_bytes
+
     def _buffer(self, name: str, size: int) -> moderngl.Buffer:
         buf = self._buffers.get(name)
         if buf is None or buf.size < size:
@@ -251,7 +258,8 @@ class ABuffer:
             self._draw(self.fill, camera, lens, settings, (r0, r1))
             ranks, slots = self.sorter.sort(bufs["ranks"], bufs["slots"], total, max(n - 1, 1).bit_length(),
                                             bufs["scratch_keys"], bufs["scratch_values"])
-            free = (bufs["scratch_keys"], bufs["scratch_values"]) if ranks is bufs["ranks"] else (bufs["ranks"], bufs["slots"])
+            scratch = (bufs["scratch_keys"], bufs["scratch_values"])
+            free = scratch if ranks is bufs["ranks"] else (bufs["ranks"], bufs["slots"])
             for binding, buf in enumerate((slots, bufs["pixels"], bufs["keys"], bufs["places"])):
                 buf.bind_to_storage_buffer(binding)
             self.gather["u_n"].value = total

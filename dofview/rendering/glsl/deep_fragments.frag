@@ -2,9 +2,10 @@
 // The quad backend's deep image, step 1 (an A-buffer): the fragments quads.frag would blend (the
 // same alpha and tau cut), recorded instead of blended, for the image rows of the band the
 // scissor lets through (u_row0 its first, from the top). With COUNT #defined, each pixel's
-// fragments are counted (bindings from 5: quads.vert's buffers take 0 to 4); otherwise each is stored at the next slot of its pixel's segment
+// fragments are counted; otherwise each is stored at the next slot of its pixel's segment
 // (segments[p] on): its rank in the front-to-back order (the sort key), the slot itself (the
-// sort value), its alpha and its pixel; and its splat's colour and depth by rank.
+// sort value), its alpha and its pixel; and its splat's colour and depth by rank. Bindings start
+// at 5: quads.vert's buffers take 0 to 4.
 
 flat in vec2 v_centre;
 flat in vec2 v_axis1;
