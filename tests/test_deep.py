@@ -123,6 +123,29 @@ def test_deep_exr_written_here_reads_back_in_the_openexr_library(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.exr", "empty.exr", "flat.exr"]  # no temporary files left
 
 
+def test_a_full_disk_leaves_the_old_deep_file_and_no_temporary(tmp_path, monkeypatch):
+    import errno
+    import io
+
+    from dofview.io import exr as exr_mod
+
+    path = tmp_path / "d.exr"
+    image = DeepFrame(np.ones((2, 3), int), np.full((6, 4), 0.5), np.ones((6, 2)))
+    image.save_deep_exr(path)
+    before = path.read_bytes()
+
+    class Full(io.BytesIO):
+        def write(self, data):
+            if self.tell() + len(data) > 300:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            return super().write(data)
+
+    monkeypatch.setattr(exr_mod, "open", lambda *a, **k: Full(), raising=False)
+    with pytest.raises(DofviewError, match="No space left on device.*nothing was written"):
+        DeepFrame(np.full((40, 50), 3), np.random.default_rng(0).random((6000, 4)), np.ones((6000, 2))).save_deep_exr(path)
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["d.exr"]
+
+
 # ---- both backends against their flat renders and the CPU twin ---------------------------------------
 @pytest.mark.parametrize("name", DATA)
 def test_flattened_deep_exr_is_the_flat_exr(backend, name, tmp_path):
