@@ -8,6 +8,7 @@ One call renders one view, in the spirit of gsplat's ``rasterization()``::
     frame = dofview.render(scene, camera, dofview.Lens(focus=4.0, aperture=60.0))
     frame.rgba.shape, frame.depth.shape                        # (240, 320, 4), (240, 320)
     frame.save_exr("cards.exr")                                # linear RGBA + Z
+    dofview.render_deep(scene, camera).save_deep_exr("deep.exr")  # deep samples (a pinhole)
     frame.save_png("cards.png", dofview.Tonemap(exposure=1.0))  # +1 EV
 
 Units: positions and depths in scene units; ``Lens.aperture`` A in px·(scene unit), so the blur
@@ -29,10 +30,12 @@ from typing import Callable
 
 from dofview import __version__
 from dofview.camera import Camera
+from dofview.deep import DeepFrame, DeepSettings
 from dofview.errors import DofviewError
 from dofview.frame import Frame, RenderSettings
 from dofview.lens import Lens, LensRequest
 from dofview.rendering import Renderer, get_backend
+from dofview.rendering.base import check_deep
 from dofview.rendering.progressive import render_lens_samples
 from dofview.scene import ColourSpace, GaussianScene
 from dofview.tonemap import Tonemap
@@ -98,6 +101,28 @@ def render(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0), *,
     return frame
 
 
+def render_deep(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0), *,
+                settings: RenderSettings = RenderSettings(), deep: DeepSettings = DeepSettings(),
+                raster: str = "auto") -> DeepFrame:
+    """The deep image of the view :func:`render` renders with the same arguments: each pixel's
+    splats front to back as samples (see :mod:`dofview.deep`); ``image.flatten()`` is
+    :func:`render`'s RGBA and ``image.save_deep_exr(path)`` writes it. A pinhole, or the per-splat
+    depth of field (``settings.dof="splat"``): the sliced mode with an aperture is refused.
+
+    Raises:
+        DofviewError: the sliced depth of field with an aperture.
+    """
+    check_deep(settings, lens)
+    renderer = get_backend(raster, scene)
+    try:
+        image = renderer.deep(camera, lens, settings, deep)
+    finally:
+        renderer.release()
+    image.meta = {**exr_header(camera, lens, Tonemap(), settings, scene.colour_space),
+                  "dofview:deep": json.dumps(deep.to_dict())}
+    return image
+
+
 def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings, colour_space: str,
                scene_path: str | None = None, lens_info: dict[str, object] | None = None,
                stats: Stats | None = None) -> dict[str, object]:
@@ -108,7 +133,12 @@ def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings
     :meth:`~dofview.lens.LensRequest.to_dict`: how the aperture was asked for),
     ``dofview:exposure``, ``dofview:gamma`` and ``dofview:tonemap`` (:meth:`Tonemap.to_dict`),
     ``dofview:render`` (:meth:`RenderSettings.to_dict` and the scene's colour space); JSON strings
-    where structured. :func:`read_header` reads them back."""
+    where structured. :func:`read_header` reads them back. Beside them, the camera as OpenEXR's
+    standard attributes that compositing applications read (:func:`dofview.io.exr.camera_attributes`:
+    ``worldToCamera``, ``worldToNDC`` and, with a physical lens, its focus, f-number and focal lengths)."""
+    from dofview.io.exr import camera_attributes
+
+    physical = LensRequest.from_dict(lens_info).physical if lens_info else None
     header: dict[str, object] = {"dofview:version": __version__}
     if scene_path is not None:
         header["dofview:scene"] = scene_path
@@ -125,6 +155,7 @@ def exr_header(camera: Camera, lens: Lens, tm: Tonemap, settings: RenderSettings
     })
     if stats is not None:  # the statistics the PNG was tone mapped with (log2 linear radiance)
         header["dofview:tonemap_stats"] = stats.to_json()
+    header.update(camera_attributes(camera, settings.near, lens.focus, physical))
     return header
 
 
@@ -186,7 +217,7 @@ def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, set
                 scene_path: str, output: Path, png: Path | None = None, half: bool = False,
                 lens_info: dict[str, float | None] | None = None, header: dict[str, object] | None = None,
                 stats: Stats | None = None, lens_samples: int = 0, smoother: StatsSmoother | None = None,
-                dt: float = 0.0) -> Frame:
+                dt: float = 0.0, deep: Path | None = None, deep_settings: DeepSettings = DeepSettings()) -> Frame:
     """Render a view and write it as ``dofview render`` does: a linear EXR (exposure applied, Z,
     dofview header) and optionally the PNG tone mapped on the GPU. Shared by the CLI and the
     viewer's Save.
@@ -198,9 +229,15 @@ def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, set
     ``dt`` the frame interval in seconds) this frame's statistics are smoothed in time first.
     The EXR stays linear whatever the operator; its header records the operator and the statistics. ``lens_samples`` > 0: the depth of field refined with that many
     sub-aperture passes (rendering.progressive; the image the viewer shows once it reached that many).
+    ``deep``: also write the view's deep image there (:meth:`Renderer.deep` with ``deep_settings``,
+    the same header plus ``dofview:deep``, exposure applied), checked before anything is written.
     """
     from dofview.io.png import write_png
 
+    if deep is not None:
+        if lens_samples:
+            raise DofviewError("--deep cannot be refined with --lens-samples: the deep image is one pass")
+        check_deep(settings, lens)
     if lens_samples:
         frame = render_lens_samples(renderer, camera, lens, settings, lens_samples)
         header = {"dofview:lens_samples": lens_samples, **(header or {})}
@@ -216,4 +253,14 @@ def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, set
     frame.save_exr(output, exposure=tm.exposure, half=half)
     if png:
         write_png(png, renderer.display_image(tm, stats=stats))
+    if deep is not None:
+        save_deep(renderer.deep(camera, lens, settings, deep_settings), deep, frame.meta, deep_settings, tm.exposure)
     return frame
+
+
+def save_deep(image: DeepFrame, path: Path, header: dict[str, object], deep_settings: DeepSettings,
+              exposure: float) -> None:
+    """Write a deep image with a flat render's ``header`` and ``dofview:deep`` (the
+    :meth:`DeepSettings.to_dict` it was made with), exposed by ``exposure`` EV as the flat EXR."""
+    image.meta = {**header, "dofview:deep": json.dumps(deep_settings.to_dict())}
+    image.save_deep_exr(path, exposure=exposure)

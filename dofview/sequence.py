@@ -8,6 +8,7 @@ together from the finished frames.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass, replace
@@ -18,6 +19,7 @@ import numpy as np
 
 from dofview.api import exr_header, read_header, save_render
 from dofview.camera import Camera
+from dofview.deep import DeepSettings
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.io.atomic import atomic_output
@@ -110,30 +112,33 @@ def check_pattern(pattern: Path, what: str) -> None:
 # ---- rendering -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Outputs:
-    """Where frames go: EXR and optional PNG name patterns, optional video and its frame rate."""
+    """Where frames go: EXR and optional PNG and deep EXR name patterns, optional video and its frame rate."""
 
     exr: Path
     png: Path | None = None
     video: Path | None = None
     fps: float = 24.0
     half: bool = False
+    deep: Path | None = None
 
 
 def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[Camera, float], Lens],
                     tm: Tonemap, settings: RenderSettings, scene_path: str, out: Outputs,
                     frames: range, resume: bool = False, lens_info: dict[str, object] | None = None, log=print,
-                    stats: Stats | None = None, lens_samples: int = 0) -> int:
+                    stats: Stats | None = None, lens_samples: int = 0, deep: DeepSettings = DeepSettings()) -> int:
     """Render the shots whose index is in ``frames`` to ``out``; returns how many were rendered.
 
     An adaptive tone-mapping operator gets ``stats`` (``--stats joint``: fixed for the shot) or else
     each frame's statistics smoothed in time as the viewer smooths them, with the frame interval
     1/fps as Δt (a skipped or resumed frame does not advance the smoothing). ``lens_samples`` > 0
-    renders each frame as the physical thin lens from that many pinhole passes.
+    renders each frame as the physical thin lens from that many pinhole passes. With ``out.deep``
+    each frame's deep image is written too (made with ``deep``; its header as the EXR's, plus
+    ``dofview:deep``).
 
     Each EXR carries its frame's camera, focus and aperture (api.exr_header) and
     ``dofview:frame``/``dofview:frames``. With ``resume``, frames whose files all exist are skipped
-    (files are written whole or not at all, so an existing one is complete) when their header
-    records the camera, lens and settings this command gives them (:func:`stale_setting`); the
+    (files are written whole or not at all, so an existing one is complete) when their header (and
+    the deep image's) records the camera, lens and settings this command gives them (:func:`stale_setting`); the
     others are rendered again, and the summary line says how many. The video, when asked for, is
     made from every frame of the shot, rendered now or found on disk.
     """
@@ -144,19 +149,25 @@ def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[C
     with Progress(f"rendering {len(todo)} frames", len(todo), unit=" frames") as bar:
         for n, shot in enumerate(todo):
             exr, png = frame_name(out.exr, shot.index), out.png and frame_name(out.png, shot.index)
+            deep_exr = out.deep and frame_name(out.deep, shot.index)
             lens = lens_for(shot.camera, shot.focus)
             frame_keys = {"dofview:frame": shot.index, "dofview:frames": total}
-            there, changed = resume and exr.is_file() and (png is None or png.is_file()), None
+            there = resume and all(p is None or p.is_file() for p in (exr, png, deep_exr))
+            changed = None
             if there:
                 expected = {**exr_header(shot.camera, lens, tm, settings, renderer.scene.colour_space, scene_path,
                                          lens_info), **frame_keys}
                 changed = stale_setting(exr, expected, lens_samples)
+                if changed is None and deep_exr is not None:
+                    changed = stale_setting(deep_exr, {**expected, "dofview:deep": json.dumps(deep.to_dict())},
+                                            lens_samples)
                 if changed is not None:
                     stale[changed] = stale.get(changed, 0) + 1
             if not there or changed is not None:
                 save_render(renderer, shot.camera, lens, tm, settings, scene_path, exr, png, half=out.half,
                             lens_info=lens_info, header=frame_keys,
-                            stats=stats, smoother=smoother, dt=1.0 / out.fps, lens_samples=lens_samples)
+                            stats=stats, smoother=smoother, dt=1.0 / out.fps, lens_samples=lens_samples,
+                            deep=deep_exr, deep_settings=deep)
                 rendered += 1
             bar.update(n + 1, info=exr.name)
     if out.video is not None:
@@ -170,21 +181,23 @@ def render_sequence(renderer: Renderer, shots: list[Shot], lens_for: Callable[[C
 
 
 def stale_setting(exr: Path, expected: dict[str, object], lens_samples: int) -> str | None:
-    """What a finished frame's EXR header records differently from ``expected`` (api.exr_header of
-    the frame this command would render): the first differing name of :data:`RECORDED`,
-    "lens_samples" or "scene"; "header" when the file cannot be read; None when it agrees.
+    """What a finished frame's EXR header (flat or deep) records differently from ``expected``
+    (api.exr_header of the frame this command would render): the first differing name of
+    :data:`RECORDED`, "lens_samples", "scene" or (where ``expected`` has ``dofview:deep``) "deep";
+    "header" when the file cannot be read; None when it agrees.
 
     Both sides are read back through api.read_header and written out again by each type's
     ``to_dict`` (:func:`_recorded`), so they compare in one form, and a header written before an
     entry was recorded (``near``) holds that entry's default. Numbers agree to a relative 1e-5
     (EXR stores float attributes in single precision, and an auto focus may differ in its last
     digits on another machine of a farm)."""
-    from dofview.io.exr import read_exr
+    from dofview.io.exr import read_exr_header
 
     try:
-        _, header = read_exr(exr)
+        header = read_exr_header(exr)
         recorded = _recorded(header)
-    except DofviewError:
+        deep = DeepSettings.from_dict(json.loads(header["dofview:deep"])) if "dofview:deep" in header else None
+    except (DofviewError, ValueError, TypeError, AttributeError):
         return "header"
     wanted = _recorded(expected)
     for name in RECORDED:
@@ -195,6 +208,8 @@ def stale_setting(exr: Path, expected: dict[str, object], lens_samples: int) -> 
     recorded_scene = header.get("dofview:scene")
     if recorded_scene is None or Path(str(recorded_scene)).resolve() != Path(str(expected["dofview:scene"])).resolve():
         return "scene"
+    if "dofview:deep" in expected and (deep is None or deep.to_dict() != json.loads(str(expected["dofview:deep"]))):
+        return "deep"
     return None
 
 

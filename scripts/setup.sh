@@ -33,9 +33,9 @@ python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
 
 # The trainer extra needs torch. Take the CPU build pinned here first, so pip never resolves a
 # CUDA build; without it the trainer's tests are skipped with a reason.
-extras="dev,video,ocio"  # video: imageio-ffmpeg, so the sequence tests write and read back MP4s; ocio: --tonemap aces
+extras="dev,video,ocio,deep"  # video: imageio-ffmpeg, so the sequence tests write and read back MP4s; ocio: --tonemap aces; deep: isal
 if python -c "import torch" >/dev/null 2>&1 || python -m pip install -q "torch==2.13.0" >/dev/null 2>&1; then
-  extras="dev,video,ocio,train"
+  extras="dev,video,ocio,deep,train"
 else
   echo "setup: torch 2.13.0 (CPU) is not available here; the trainer will be skipped" >&2
 fi

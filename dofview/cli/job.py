@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dofview.camera import Camera
+from dofview.deep import DeepSettings
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.io.atomic import check_writable, make_folder
@@ -47,6 +48,7 @@ class RenderJob:
         frames: the frames to render, 0-based (all of a single image's one).
         resume: keep finished frames whose headers agree (``--resume``).
         follow_views: the focus follows each view of a camera path (``--views`` with auto focus).
+        deep: how ``outputs.deep``'s samples are made (``--deep-tolerance``, ``--deep-cap``).
     """
 
     opened: OpenedScene
@@ -63,6 +65,7 @@ class RenderJob:
     frames: range
     resume: bool = False
     follow_views: bool = False
+    deep: DeepSettings = DeepSettings()
 
     def stats(self, renderer: Renderer) -> Stats | None:
         """The tone-mapping statistics ``--stats`` asks for: pooled over every training view of
@@ -94,6 +97,7 @@ def job_from_args(args: argparse.Namespace) -> RenderJob:
         DofviewError: a bad output name, conflicting options, a missing file, a view out of range.
     """
     check_outputs(args)
+    deep = deep_from_args(args)
     sequence = is_sequence(args)
     pull = isinstance(args.focus, tuple)
     if sequence:
@@ -119,6 +123,8 @@ def job_from_args(args: argparse.Namespace) -> RenderJob:
         check_pattern(args.output, "-o")
         if args.png is not None:
             check_pattern(args.png, "--png")
+        if args.deep is not None:
+            check_pattern(args.deep, "--deep")
     first_frame, last_frame = args.frame_range or (0, count - 1)
     if first_frame >= count:
         raise DofviewError(f"--range {first_frame}:{last_frame}: the shot has frames 0…{count - 1}")
@@ -129,9 +135,21 @@ def job_from_args(args: argparse.Namespace) -> RenderJob:
     for _, target in _output_files(args):  # everything checked: the output folders are made, as renderers do
         make_folder(target)
     return RenderJob(opened, path, args.focus, lens, tm, settings, args.raster, args.stats == "joint",
-                     args.lens_samples, Outputs(args.output, args.png, args.video, args.fps, args.half),
+                     args.lens_samples, Outputs(args.output, args.png, args.video, args.fps, args.half, args.deep),
                      sequence, range(first_frame, last_frame + 1), args.resume,
-                     follow_views=args.views is not None)
+                     follow_views=args.views is not None, deep=deep)
+
+
+def deep_from_args(args: argparse.Namespace) -> DeepSettings:
+    """``--deep-tolerance`` and ``--deep-cap`` as :class:`DeepSettings`; the deep image refuses
+    ``--lens-samples`` (it is one pass) and an output that is ``-o``'s own file."""
+    deep = DeepSettings(args.deep_tolerance, args.deep_cap)
+    if args.deep is not None:
+        if args.lens_samples:
+            raise DofviewError("--deep cannot be refined with --lens-samples: the deep image is one pass")
+        if args.deep.resolve() == args.output.resolve():
+            raise DofviewError(f"{args.deep}: --deep must name another file than -o")
+    return deep
 
 
 def _views(args: argparse.Namespace, opened: OpenedScene) -> tuple[list[Camera], int, int]:
@@ -154,6 +172,8 @@ def check_outputs(args: argparse.Namespace) -> None:
     sequence's numbered names are checked with frame 0 filled in."""
     if args.output.suffix.lower() != ".exr":
         raise DofviewError(f"{args.output}: output must be an .exr file")
+    if args.deep is not None and args.deep.suffix.lower() != ".exr":
+        raise DofviewError(f"{args.deep}: --deep must name an .exr file")
     if args.png is not None and args.png.suffix.lower() != ".png":
         raise DofviewError(f"{args.png}: --png must name a .png file")
     if args.video is not None:
@@ -167,7 +187,7 @@ def check_outputs(args: argparse.Namespace) -> None:
 def _output_files(args: argparse.Namespace) -> list[tuple[Path, Path]]:
     """(output option's value, the file it names): frame 0's for a sequence's numbered names."""
     numbered, files = is_sequence(args), []
-    for path in (args.output, args.png, args.video):
+    for path in (args.output, args.png, args.video, args.deep):
         if path is None:
             continue
         try:

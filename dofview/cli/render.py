@@ -10,6 +10,7 @@ from dofview.api import save_render
 from dofview.camera import Camera
 from dofview.cli.job import RenderJob, job_from_args
 from dofview.cli.sequence import add_sequence_args, focus_and_span, run_sequence
+from dofview.deep import DEFAULT_CAP, DEFAULT_TOLERANCE
 from dofview.lens import Lens
 from dofview.options import add_lens_args, add_scene_args, add_view_args, number
 
@@ -28,8 +29,23 @@ def add_parser(sub) -> None:
                    help="refine the depth of field with N passes, each from its own point of the lens disk "
                         "blurred by that 1/N share of the aperture, averaged (1: the single pass; the image the "
                         "viewer shows once its refinement reached N; the exact thin lens as N grows)")
+    add_deep_args(p)
     add_sequence_args(p)
     p.set_defaults(run=run_render)
+
+
+def add_deep_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("deep output (for compositing: docs/COMPOSITING.md)")
+    g.add_argument("--deep", type=Path, metavar="OUT.exr",
+                   help="also write an OpenEXR deep image: per pixel, the splats front to back as samples with R, G, "
+                        "B, A (linear, premultiplied), Z and ZBack (camera depth); flattened, it is the -o image. "
+                        "A pinhole (--aperture 0) or --dof splat; numbered like -o in a sequence")
+    g.add_argument("--deep-tolerance", type=number(0, None, lo_open=True, what="--deep-tolerance"),
+                   default=DEFAULT_TOLERANCE, metavar="REL",
+                   help=f"merge a pixel's splats into one sample while their depth is within this fraction of the "
+                        f"sample's front (default {DEFAULT_TOLERANCE:g})")
+    g.add_argument("--deep-cap", type=number(1, None, integer=True, what="--deep-cap"), default=DEFAULT_CAP,
+                   metavar="N", help=f"most samples per pixel; the last takes all behind it (default {DEFAULT_CAP})")
 
 
 def run_render(args: argparse.Namespace) -> int:
@@ -48,10 +64,13 @@ def render_image(job: RenderJob) -> int:
                                  job.tonemap)
     lens = job.lens.lens(camera, focus, span)
     save_render(renderer, camera, lens, job.tonemap, job.settings, str(scene_path), out.exr, out.png, half=out.half,
-                lens_info=job.lens.to_dict(), stats=job.stats(renderer), lens_samples=job.lens_samples)
+                lens_info=job.lens.to_dict(), stats=job.stats(renderer), lens_samples=job.lens_samples,
+                deep=out.deep, deep_settings=job.deep)
     job.opened.say_notes()
     print(f"{out.exr}: {camera.width}×{camera.height}, focus {lens.focus:.4g}, {aperture_words(camera, lens)}, "
-          f"exposure {job.tonemap.exposure:+.4g} EV" + (f"; {out.png}" if out.png else ""), file=sys.stderr)
+          f"exposure {job.tonemap.exposure:+.4g} EV" + (f"; {out.png}" if out.png else "")
+          + (f"; {out.deep}" if out.deep else ""), file=sys.stderr)
+    return 0
 
 
 def aperture_words(camera: Camera, lens: Lens) -> str:
@@ -61,4 +80,3 @@ def aperture_words(camera: Camera, lens: Lens) -> str:
     if camera.width == camera.ref_width:
         return given + ")"
     return given + f"; A = {lens.aperture:.4g} on these {camera.width} px)"
-    return 0

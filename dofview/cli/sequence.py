@@ -130,5 +130,5 @@ def run_sequence(job: RenderJob) -> int:
     job.opened.say_notes()
     render_sequence(renderer, shots, lens_for, job.tonemap, job.settings, str(scene_path), job.outputs, frames,
                     job.resume, job.lens.to_dict(), log=lambda line: print(line, file=sys.stderr),
-                    stats=job.stats(renderer), lens_samples=job.lens_samples)
+                    stats=job.stats(renderer), lens_samples=job.lens_samples, deep=job.deep)
     return 0

@@ -24,10 +24,11 @@ import moderngl
 import numpy as np
 
 from dofview.camera import Camera
+from dofview.deep import DeepFrame, DeepSettings
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
 from dofview.lens import Lens
 from dofview.rendering.display import DisplayPass
-from dofview.errors import BackendUnavailable
+from dofview.errors import BackendUnavailable, DofviewError
 from dofview.rendering.gl import GL_REQUIRED, check_size, float32_uniform, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
 from dofview.rendering.slices import Layer, LensCell, SliceRule
@@ -312,6 +313,31 @@ class Renderer(ABC):
         self.draw(camera, lens, settings)
         return self.read()
 
+    # ---- deep image --------------------------------------------------------------------------
+    def deep(self, camera: Camera, lens: Lens = Lens(1.0, 0.0), settings: RenderSettings = RenderSettings(),
+             deep: DeepSettings = DeepSettings()) -> DeepFrame:
+        """The deep image of what :meth:`render` draws with the same arguments: each pixel's splats
+        front to back as deep samples (dofview.deep: merged within ``deep.tolerance``, at most
+        ``deep.cap``), found and walked on the GPU by the backend (:meth:`_deep`) and read back.
+        Flattening it gives :meth:`render`'s image (tests/test_deep.py: ≥ 50 dB). The pinhole and the
+        per-splat depth of field (``settings.dof == "splat"``) only, for now (:func:`check_deep`).
+
+        Raises:
+            DofviewError: the sliced depth of field with an aperture.
+        """
+        check_deep(settings, lens)
+        self._targets(camera.width, camera.height)
+        self.sort(camera)
+        counts, colour, depth = self._deep(camera, lens, settings, deep, self.encoded_scene and not settings.blend_linear)
+        return DeepFrame(counts, colour, depth)
+
+    @abstractmethod
+    def _deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
+              encoded: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The backend's deep walk of the current order (sorted for ``camera``): (counts (H, W),
+        colours (S, 4), depths (S, 2)) as :class:`DeepFrame` holds them; ``encoded``: the blend is
+        display-encoded (the samples are decoded as dofview.deep describes)."""
+
     # ---- display ---------------------------------------------------------------------------
     def frame_stats(self, operator, domain: tuple[float, float] | None = None) -> Stats:
         """Scene statistics of the last draw for ``operator``, from GPU histograms (a 32 KB read-back,
@@ -351,3 +377,15 @@ class Renderer(ABC):
         if self._size is not None:
             for obj in (self.fbo, self.colour_tex, self.depth_tex, self.display_fbo, self._display_rb):
                 obj.release()
+
+
+def check_deep(settings: RenderSettings, lens: Lens) -> None:
+    """Refuse a deep image the renderer cannot make yet: the sliced depth of field's blurred layers
+    (the default mode with an aperture) are not deep samples so far.
+
+    Raises:
+        DofviewError: one line saying what works instead.
+    """
+    if settings.dof == "sliced" and lens.aperture > 0:
+        raise DofviewError("--deep needs a pinhole (--aperture 0) or the per-splat depth of field (--dof splat): "
+                           "the sliced depth of field's layers are not written as deep samples yet")

@@ -19,9 +19,11 @@ import numpy as np
 
 from dofview.camera import Camera
 from dofview.errors import BackendUnavailable, DofviewError
+from dofview.deep import DeepSettings
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.base import Renderer
+from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
 from dofview.rendering.gl import compute_shader
 from dofview.rendering.gpu_sort import (
     GpuRadixSort,
@@ -119,13 +121,16 @@ class ComputeBackend(Renderer):
         self._binned = False  # the pairs of the last _prepare are made and sorted (one buffer holds them)
         self._vals: moderngl.Buffer | None = None  # the sorted pairs' ranks
         self._passes: tuple[int, int] | None = None  # (splats a blend pass takes, the longest tile) where loops are limited
+        self._deep_prog: moderngl.ComputeShader | None = None  # the deep walk, compiled by the first deep image
+        self._deep_walk: DeepWalk | None = None
 
     @property
     def gpu_bytes(self) -> int:
         """Bytes of GPU storage: the scene's buffers, the per-Gaussian buffers and the pair
         buffers as now allocated (they grow to the largest frame drawn)."""
         own = (self._order, self._splats, self._rects, self._offsets, self._group_totals, *self._pairs)
-        return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes
+        deep = self._deep_walk.gpu_bytes if self._deep_walk is not None else 0  # (after a deep image)
+        return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes + deep
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
@@ -367,10 +372,48 @@ class ComputeBackend(Renderer):
         self.ctx.memory_barrier()
         return int(np.frombuffer(self._longest.read(), np.uint32)[0])
 
+    # ---- deep image ----------------------------------------------------------------------------
+    def _deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
+              encoded: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each pixel's splats walked from the tile lists the blend uses (glsl/deep_tiles.comp),
+        binned once, or per depth slice (walked one after another) when the pairs exceed a buffer."""
+        if self._deep_prog is None:
+            self._deep_prog = compute_shader(self.ctx, "deep_tiles.comp", {"TILE": self.tile})
+            self._deep_walk = DeepWalk(self.ctx)
+        self._prepare(camera, lens, settings, False)
+        slices = self._slices(0, self.scene.count, 0, self.pairs) if self.pairs else [(0, 0, 0, 0)]
+        prog, walker, take = self._deep_prog, self._deep_walk, walk_take(self.ctx)
+        prog["u_tau"].value = settings.tau
+        prog["u_tiles_x"].value = self._tiles[0]
+        prog["u_size"].value = (camera.width, camera.height)
+        binned = -1  # the slice whose pairs are binned now
+
+        def walk(r0: int, r1: int, emit: bool) -> None:
+            nonlocal binned
+            rows = ((camera.height - r1) // self.tile, -(-(camera.height - r0) // self.tile))  # its tile rows (GL)
+            for i, piece in enumerate(slices):
+                if binned != i:
+                    self._bin(*piece)
+                    binned = i
+                runs = passes(self._longest_range(self._tiles) if take is not None else 0, take)
+                for j, (skip, n) in enumerate(runs):
+                    walker.set_pass(prog, resume=i > 0 or j > 0, last=i == len(slices) - 1 and j == len(runs) - 1)
+                    prog["u_rows"].value = (r0, r1)
+                    prog["u_tile_row0"].value = rows[0]
+                    prog["u_skip"].value = skip
+                    prog["u_take"].value = n
+                    for binding, buf in enumerate((self._splats, self._vals, self._ranges, self._order)):
+                        buf.bind_to_storage_buffer(binding)
+                    prog.run(self._tiles[0], rows[1] - rows[0])
+                    self.ctx.memory_barrier()
+
+        bands = walker.count_bands(np.zeros(camera.height), camera.width, "pixels")
+        return walker.run(prog, camera.width, camera.height, deep, encoded, walk, bands)
+
     def _release_backend(self) -> None:
         for obj in (self._order, self._splats, self._rects, self._offsets, self._group_totals,
                     self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
-                    self._ranges_prog, self._longest_prog, self._blend):
+                    self._ranges_prog, self._longest_prog, self._blend, self._deep_prog, self._deep_walk):
             if obj is not None:
                 obj.release()
         self.sorter.release()

@@ -16,11 +16,14 @@ import moderngl
 import numpy as np
 
 from dofview.camera import Camera
+from dofview.deep import DeepSettings
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.base import Renderer
+from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
 from dofview.rendering.depth_order import front_to_back
-from dofview.rendering.gl import load_shader
+from dofview.rendering.gl import compute_shader, load_shader
+from dofview.rendering.gpu_sort import GpuRadixSort, groups
 from dofview.rendering.sort_thread import SortThread
 from dofview.rendering.uniforms import set_projection_uniforms
 from dofview.scene import GaussianScene
@@ -43,11 +46,13 @@ class QuadBackend(Renderer):
         self._thread: SortThread | None = None  # started by the first request_order
         self._requested: bytes | None = None  # the view request_order was last asked for
         self._awaiting: bytes | None = None  # the view whose background order is not in yet
+        self._abuffer: ABuffer | None = None  # the deep image's fragment lists, made by the first deep image
 
     @property
     def gpu_bytes(self) -> int:
-        """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer)."""
-        return super().gpu_bytes + self._order.size
+        """Bytes of per-Gaussian GPU storage (scene buffers and the order buffer; the A-buffer's
+        after a deep image)."""
+        return super().gpu_bytes + self._order.size + (self._abuffer.gpu_bytes if self._abuffer is not None else 0)
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
@@ -151,8 +156,156 @@ class QuadBackend(Renderer):
         self.ctx.disable(moderngl.BLEND)
         self.ctx.scissor = None
 
+    # ---- deep image ----------------------------------------------------------------------------
+    def _deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
+              encoded: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fragments this backend blends, kept per pixel in an A-buffer (:class:`ABuffer`) and
+        walked front to back."""
+        if self._abuffer is None:
+            self._abuffer = ABuffer(self)
+        return self._abuffer.deep(camera, lens, settings, deep, encoded)
+
     def _release_backend(self) -> None:
         if self._thread is not None:
             self._thread.close()
-        for obj in (self._order, self._vao, self.program):
-            obj.release()
+        for obj in (self._order, self._vao, self.program, self._abuffer):
+            if obj is not None:
+                obj.release()
+
+
+class ABuffer:
+    """The quad backend's deep image: an A-buffer of the fragments its quads produce.
+
+    Per frame: (1) the quads are drawn with glsl/deep_fragments.frag counting each pixel's
+    fragments (the same alpha and τ cut as quads.frag); (2) band by band of image rows (each
+    within deep_gpu's limits), drawn again (scissored to the band) to store every fragment's rank in
+    the front-to-back order, alpha and pixel, and its splat's colour and depth; (3) sorted by rank,
+    then stably by pixel (two GPU radix sorts, glsl/deep_gather.comp between them), which leaves each
+    pixel's fragments together, front to back; (4) walked per pixel into deep samples
+    (glsl/deep_fragments.comp, deep_gpu.DeepWalk). Fragments land in the buffers in whatever order
+    the GPU runs them: the sorts, not the draw, give the order.
+    """
+
+    def __init__(self, backend: QuadBackend) -> None:
+        self.backend = backend
+        self.ctx = ctx = backend.ctx
+        defs = backend.shader_defines
+        vert = load_shader("quads.vert", defs)
+        self.count = ctx.program(vertex_shader=vert, fragment_shader=load_shader("deep_fragments.frag", {"COUNT": 1}))
+        self.fill = ctx.program(vertex_shader=vert, fragment_shader=load_shader("deep_fragments.frag"))
+        self.vaos = [ctx.vertex_array(p, []) for p in (self.count, self.fill)]
+        self.gather = compute_shader(ctx, "deep_gather.comp")
+        self.walk = compute_shader(ctx, "deep_fragments.comp")
+        self.sorter = GpuRadixSort(ctx)
+        self.walker = DeepWalk(ctx)
+        self._buffers: dict[str, moderngl.Buffer] = {}
+        self._fbo: moderngl.Framebuffer | None = None
+
+    @property
+    def gpu_bytes(self) -> int:
+        """Bytes of the fragment lists and the walk's buffers, as now allocated (they grow to the
+        largest band drawn: at most deep_gpu.band_items fragments, 32 B each)."""
+        return sum(b.size for b in self._buffers.values()) + self.walker.gpu_bytes + self.sorter.gpu_bytes
+
+    def _buffer(self, name: str, size: int) -> moderngl.Buffer:
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < size:
+            if buf is not None:
+                buf.release()
+            buf = self._buffers[name] = self.ctx.buffer(reserve=max(size, 16))
+        return buf
+
+    def _draw(self, program: moderngl.Program, camera: Camera, lens: Lens, settings: RenderSettings,
+              rows: tuple[int, int]) -> None:
+        """Every Gaussian's quad through ``program`` (no colour written), fragments in image rows
+        ``rows`` (from the top, end exclusive) only."""
+        b = self.backend
+        set_projection_uniforms(program, camera, lens, settings)
+        for name, value in (("u_count", False), ("u_first", 0), ("u_n", b.scene.count),
+                            ("u_size", (camera.width, camera.height)), ("u_row0", rows[0])):
+            if name in program:
+                program[name].value = value
+        if self._fbo is None or self._fbo.size != (camera.width, camera.height):
+            if self._fbo is not None:
+                self._fbo.release()
+            self._fbo = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer((camera.width, camera.height), 1,
+                                                                                       dtype="f1")])
+            self._fbo.color_mask = (False, False, False, False)
+        b._bind_scene()
+        b._order.bind_to_storage_buffer(3)
+        b._counter.bind_to_storage_buffer(4)
+        self._fbo.use()
+        self.ctx.viewport = (0, 0, camera.width, camera.height)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        self.ctx.scissor = (0, camera.height - rows[1], camera.width, rows[1] - rows[0])
+        if b.scene.count:
+            self.vaos[program is self.fill].render(moderngl.TRIANGLE_STRIP, vertices=4, instances=b.scene.count)
+        self.ctx.scissor = None
+        self.ctx.memory_barrier()
+
+    def deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
+             encoded: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        w, h, n = camera.width, camera.height, self.backend.scene.count
+        counts = self._buffer("counts", 4 * w * h)
+        counts.clear()
+        counts.bind_to_storage_buffer(5)
+        self._draw(self.count, camera, lens, settings, (0, h))
+        fragments = np.frombuffer(counts.read(size=4 * w * h), np.uint32).reshape(h, w).astype(np.int64)
+        self._buffer("info", 16 * max(n, 1))
+        take = walk_take(self.ctx)
+        band: dict[str, object] = {}
+
+        def prepare(r0: int, r1: int) -> None:
+            per_pixel = fragments[r0:r1].ravel()
+            total = int(per_pixel.sum())
+            segments = np.concatenate([[0], np.cumsum(per_pixel)]).astype(np.uint32)
+            band.update(total=total, longest=int(per_pixel.max()) if per_pixel.size else 0)
+            seg = self._buffer("segments", 4 * segments.size)
+            seg.write(segments.tobytes())
+            band["segments"] = seg
+            if not total:
+                return
+            names = ("ranks", "slots", "scratch_keys", "scratch_values", "alphas", "pixels", "keys", "places")
+            bufs = {k: self._buffer(k, 4 * total) for k in names}
+            cursor = self._buffer("counts", 4 * per_pixel.size)
+            cursor.clear()
+            for binding, buf in enumerate((cursor, seg, bufs["ranks"], bufs["slots"], bufs["alphas"], bufs["pixels"],
+                                           self._buffers["info"]), start=5):
+                buf.bind_to_storage_buffer(binding)
+            self._draw(self.fill, camera, lens, settings, (r0, r1))
+            ranks, slots = self.sorter.sort(bufs["ranks"], bufs["slots"], total, max(n - 1, 1).bit_length(),
+                                            bufs["scratch_keys"], bufs["scratch_values"])
+            scratch = (bufs["scratch_keys"], bufs["scratch_values"])
+            free = scratch if ranks is bufs["ranks"] else (bufs["ranks"], bufs["slots"])
+            for binding, buf in enumerate((slots, bufs["pixels"], bufs["keys"], bufs["places"])):
+                buf.bind_to_storage_buffer(binding)
+            self.gather["u_n"].value = total
+            self.gather.run(*groups(-(-total // 256)))
+            self.ctx.memory_barrier()
+            _, places = self.sorter.sort(bufs["keys"], bufs["places"], total, max(per_pixel.size - 1, 1).bit_length(),
+                                         *free)
+            band.update(places=places, ranks=ranks, slots=slots, alphas=bufs["alphas"])
+
+        def walk(r0: int, r1: int, emit: bool) -> None:
+            runs = passes(int(band["longest"]), take)
+            for j, (skip, count) in enumerate(runs):
+                self.walker.set_pass(self.walk, resume=j > 0, last=j == len(runs) - 1)
+                if band["total"]:
+                    for binding, name in enumerate(("places", "ranks", "slots", "alphas")):
+                        band[name].bind_to_storage_buffer(binding)  # type: ignore[attr-defined]
+                self._buffers["info"].bind_to_storage_buffer(4)
+                band["segments"].bind_to_storage_buffer(5)  # type: ignore[attr-defined]
+                self.walk["u_band"].value = (w, r1 - r0)
+                self.walk["u_skip"].value = skip
+                self.walk["u_take"].value = count
+                self.walk.run(-(-w // 8), -(-(r1 - r0) // 8))
+                self.ctx.memory_barrier()
+
+        bands = self.walker.count_bands(fragments.sum(axis=1), w, "fragments")
+        return self.walker.run(self.walk, w, h, deep, encoded, walk, bands, prepare)
+
+    def release(self) -> None:
+        for obj in (self.count, self.fill, *self.vaos, self.gather, self.walk, self.sorter, self.walker,
+                    *self._buffers.values(), self._fbo):
+            if obj is not None:
+                obj.release()

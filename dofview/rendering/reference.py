@@ -15,6 +15,7 @@ from typing import TypeVar
 import numpy as np
 
 from dofview.camera import Camera
+from dofview.deep import TRANSMITTANCE_MIN, DeepFrame, DeepSettings
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
 from dofview.lens import (
     ALPHA_MAX,
@@ -169,10 +170,40 @@ def _blend(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSet
     and coverage, (H, W, 4) float64 depth sums (Σw·z, Σw/z, 0, Σw), and the near-cut mask of
     :func:`render_reference`."""
     w, h = camera.width, camera.height
+    pr, colour = _projected(scene, camera, lens, settings)
+    out = np.zeros((h, w, 4))
+    sums = np.zeros((h, w, 4))
+    near_cut = np.zeros((h, w), bool)
+    for (x0, y0, x1, y1), hit, alpha, edge in _tile_alphas(pr, w, h, settings.tau, tile, margins):
+        if edge is not None:
+            near_cut[y0:y1, x0:x1] = edge.reshape(y1 - y0, x1 - x0)
+        trans = np.cumprod(1.0 - alpha, axis=1)
+        weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
+        rgb = weight @ colour[hit]
+        a = 1.0 - trans[:, -1]
+        z = weight @ np.stack([pr["depth"][hit], 1.0 / pr["depth"][hit]], 1)
+        out[y0:y1, x0:x1, :3] = rgb.reshape(y1 - y0, x1 - x0, 3)
+        out[y0:y1, x0:x1, 3] = a.reshape(y1 - y0, x1 - x0)
+        sums[y0:y1, x0:x1, :2] = z.reshape(y1 - y0, x1 - x0, 2)
+    sums[..., 3] = out[..., 3]
+    return out, sums, near_cut
+
+
+def _projected(scene: GaussianScene, camera: Camera, lens: Lens,
+               settings: RenderSettings) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """:func:`project`'s footprints and the (M, 3) float64 colours in the blend space (decoded
+    when blending linearly)."""
     pr = project(scene, camera, lens, settings)
     colour = sh_colour(scene, camera.centre, pr["idx"])
-    if settings.blend_linear:
-        colour = decode(colour)
+    return pr, decode(colour) if settings.blend_linear else colour
+
+
+def _tile_alphas(pr: dict[str, np.ndarray], w: int, h: int, tau: float, tile: int, margins: bool):
+    """Per ``tile``-pixel square of the w × h image that some footprint of ``pr`` reaches: its
+    (x0, y0, x1, y1) pixels, the (M,) indices into ``pr`` of the footprints reaching it (front to
+    back), their (P, M) float64 alphas at its P pixel centres (row-major; 0 where cut by τ or the
+    support) and, when ``margins``, a (P,) bool mask of the pixels where some alpha sits within
+    1e-5 (relative) of a cut (else None)."""
     sxx, sxy, syy = pr["cov"].T
     det = sxx * syy - sxy * sxy
     conic = np.stack([syy / det, -sxy / det, sxx / det], 1)
@@ -182,10 +213,6 @@ def _blend(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSet
     sig = np.sqrt(shape)
     qmax = np.where(disk, (2.0 * np.sqrt(np.maximum(1.0 - shape, 0.0)) + 3.0 * sig) ** 2, SUPPORT_MAX)
     lo, hi = pr["mean2d"] - ext, pr["mean2d"] + ext
-    out = np.zeros((h, w, 4))
-    sums = np.zeros((h, w, 4))
-    near_cut = np.zeros((h, w), bool)
-    tau = settings.tau
     for y0 in range(0, h, tile):
         for x0 in range(0, w, tile):
             x1, y1 = min(x0 + tile, w), min(y0 + tile, h)
@@ -203,22 +230,66 @@ def _blend(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSet
                 profile = np.where(dk, disk_profile(q, np.where(dk, shape[hit][None], 0.5)), profile)
             alpha = np.minimum(ALPHA_MAX, pr["opacity"][hit][None] * profile)
             qm = qmax[hit][None]
+            edge = None
             if margins:
-                edge = np.abs(q - qm) <= 1e-5 * qm
+                near = np.abs(q - qm) <= 1e-5 * qm
                 if tau > 0:
-                    edge |= np.abs(alpha - tau) <= 1e-5 * tau
-                near_cut[y0:y1, x0:x1] = edge.any(axis=1).reshape(y1 - y0, x1 - x0)
-            alpha = np.where((alpha >= tau) & (q <= qm), alpha, 0.0)
-            trans = np.cumprod(1.0 - alpha, axis=1)
-            weight = alpha * np.concatenate([np.ones((alpha.shape[0], 1)), trans[:, :-1]], axis=1)
-            rgb = weight @ colour[hit]
-            a = 1.0 - trans[:, -1]
-            z = weight @ np.stack([pr["depth"][hit], 1.0 / pr["depth"][hit]], 1)
-            out[y0:y1, x0:x1, :3] = rgb.reshape(y1 - y0, x1 - x0, 3)
-            out[y0:y1, x0:x1, 3] = a.reshape(y1 - y0, x1 - x0)
-            sums[y0:y1, x0:x1, :2] = z.reshape(y1 - y0, x1 - x0, 2)
-    sums[..., 3] = out[..., 3]
-    return out, sums, near_cut
+                    near |= np.abs(alpha - tau) <= 1e-5 * tau
+                edge = near.any(axis=1)
+            yield (x0, y0, x1, y1), hit, np.where((alpha >= tau) & (q <= qm), alpha, 0.0), edge
+
+
+def render_reference_deep(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0),
+                          settings: RenderSettings = RenderSettings(dof="splat"), deep: DeepSettings = DeepSettings(),
+                          tile: int = 16) -> DeepFrame:
+    """The deep image of :func:`render_reference`'s blend (the twin of ``Renderer.deep``): each
+    pixel's contributions front to back, grouped by the rule of :mod:`dofview.deep` (a
+    contribution at depth z joins the open sample started at z₀ while z ≤ z₀·(1 + tolerance), or
+    when the pixel has used up its ``cap``), the walk ending where the transmittance falls below
+    :data:`~dofview.deep.TRANSMITTANCE_MIN`; samples in linear light, telescoped through the decode
+    of an encoded blend (see dofview.deep)."""
+    w, h = camera.width, camera.height
+    pr, colour = _projected(scene, camera, lens, settings)
+    linear = decode if scene.colour_space == "srgb" and not settings.blend_linear else np.asarray
+    reach = 1.0 + deep.tolerance
+    found: list[tuple[np.ndarray, ...]] = []  # (pixel, index in pixel, rgba, depth) per emission
+    for (x0, y0, x1, y1), hit, alpha, _ in _tile_alphas(pr, w, h, settings.tau, tile, False):
+        tw, npx = x1 - x0, alpha.shape[0]
+        pixel = (y0 + np.arange(npx) // tw) * w + x0 + np.arange(npx) % tw
+        rgb, rgb0 = np.zeros((npx, 3)), np.zeros((npx, 3))
+        trans, trans0, z0, z1 = np.ones(npx), np.ones(npx), np.zeros(npx), np.zeros(npx)
+        count, opened = np.zeros(npx, np.int64), np.zeros(npx, bool)
+
+        def close(m: np.ndarray) -> None:
+            found.append((pixel[m], count[m].copy(),
+                          np.column_stack([(linear(rgb[m]) - linear(rgb0[m])) / trans0[m, None],
+                                           1.0 - trans[m] / trans0[m]]),
+                          np.column_stack([z0[m], z1[m]])))
+            count[m] += 1
+            opened[m] = False
+
+        depth = pr["depth"][hit]
+        for j in np.nonzero(alpha.any(axis=0))[0]:
+            a, z = alpha[:, j], depth[j]
+            live = (a > 0) & (trans >= TRANSMITTANCE_MIN)
+            if not live.any():
+                continue
+            ends = live & opened & (z > z0 * reach) & (count + 1 < deep.cap)
+            if ends.any():
+                close(ends)
+            starts = live & ~opened
+            rgb0[starts], trans0[starts], z0[starts], z1[starts] = rgb[starts], trans[starts], z, z
+            opened |= starts
+            rgb[live] += (a[live] * trans[live])[:, None] * colour[hit[j]]
+            trans[live] *= 1.0 - a[live]
+            z1[live] = np.maximum(z1[live], z)
+        if opened.any():
+            close(opened.copy())
+    if not found:
+        return DeepFrame(np.zeros((h, w), np.int64), np.zeros((0, 4)), np.zeros((0, 2)))
+    pix, k, rgba, zz = (np.concatenate(parts) for parts in zip(*found))
+    order = np.lexsort((k, pix))
+    return DeepFrame(np.bincount(pix, minlength=w * h).reshape(h, w), rgba[order], zz[order])
 
 
 def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,

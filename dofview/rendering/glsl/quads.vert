@@ -25,6 +25,7 @@ flat out float v_opacity;
 flat out vec3 v_colour;
 flat out float v_depth;
 flat out float v_shape;     // kernel shape (lens.glsl: splat_alpha)
+flat out uint v_place;      // the instance's place in the back-to-front order (deep_fragments.frag)
 
 void cull() {
     gl_Position = vec4(0.0, 0.0, 2.0, 1.0);  // outside the clip volume: nothing rasterised
@@ -35,11 +36,13 @@ void cull() {
     v_colour = vec3(0.0);
     v_depth = 0.0;
     v_shape = 1.0;
+    v_place = 0u;
 }
 
 void main() {
     Footprint f;
-    if (!project_gaussian(order[u_first + uint(gl_InstanceID)], f)) { cull(); return; }
+    v_place = u_first + uint(gl_InstanceID);
+    if (!project_gaussian(order[v_place], f)) { cull(); return; }
     vec2 e1;
     float l1, l2;
     footprint_axes(f.sxx, f.sxy, f.syy, f.det, e1, l1, l2);
