@@ -44,8 +44,8 @@ class RenderSettings:
             "drop" cut only.
         dof: how depth of field is made: "sliced" (the default) blends depth slices as a pinhole
             and blurs each with the aperture (rendering/sliced.py; k, the kernel, the opacity
-            normalisation and the cut then apply only to the huge-CoC layers of a
-            SliceRule with a finite ``huge``, none by default); "splat" blurs each
+            normalisation and the cut then apply only to its front and back layers, the splats
+            blurred beyond SliceRule.huge of the frame); "splat" blurs each
             splat (k, the kernel, the opacity normalisation), the published single pass.
         blades: aperture of the sliced mode: 0 a disk, n ≥ 3 a regular n-gon.
         blade_rotation: the polygon's first corner, degrees from +x (image right).

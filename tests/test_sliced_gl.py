@@ -4,6 +4,7 @@ frame-filling near wall and the bladed aperture against the thin lens, refinemen
 the settings' round trip and the CLI path."""
 
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -25,7 +26,6 @@ from dofview.lens import Lens, aperture_for_blur
 from dofview.rendering import get_backend
 from dofview.rendering.depth_order import camera_depths
 from dofview.rendering.progressive import lens_cells
-from dofview.rendering import reference
 from dofview.rendering.reference import render_reference_sliced
 from dofview.rendering.slices import SLICE_RULE
 from dofview.scene import GaussianScene
@@ -74,19 +74,19 @@ def test_sliced_matches_the_cpu_reference(backend, path):
 
 @pytest.mark.parametrize("backend", ["quad", "compute"])
 def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
-    """The rule's other treatment of near-camera splats (SliceRule.huge finite, for comparison in
-    the benchmark): those beyond it are drawn by the per-splat method as a front and a back layer."""
+    """Splats blurred beyond a quarter of the frame (SliceRule.huge: 40 px at 160 px wide) are drawn
+    by the per-splat method as a front and a back layer: two_planes's floaters in front."""
     scene = load_scene(TWO_PLANES, progress=False)
     cam, lens = _view(scene, 16.0)
-    rule = replace(SLICE_RULE, huge=40.0)
     r = get_backend(backend, scene)
     try:
-        r.slice_rule = rule
         gl = r.render(cam, lens, SLICED)
-        assert r.sliced_layers[0].lensed  # the floaters in front
+        front = r.sliced_layers[0]
+        assert front.lensed and front.end > front.first  # the floaters in front
+        assert not any(l.lensed for l in r.sliced_layers[1:-1])
     finally:
         r.release()
-    ref = render_reference_sliced(scene, cam, lens, SLICED, rule=rule)
+    ref = render_reference_sliced(scene, cam, lens, SLICED)
     assert psnr(gl.rgba, ref.rgba) >= MIN_PSNR
 
 
@@ -197,9 +197,10 @@ def test_a_frame_filling_near_wall_keeps_its_blurred_coverage():
 def test_floaters_at_the_lens_do_not_fog_the_frame(backend):
     """30 small floaters (σ 0.004, opacity 0.5) 0.08–0.3 units from the lens in front of a plane in
     focus at 3, 80 × 60: their CoC runs to 73 and 146 px, and through the lens they all but vanish.
-    The sliced mode spreads each over its own huge CoC, as the lens does, instead of leaving discs
-    or a veil: within 0.03 of the 48-sample accumulation everywhere (the pinhole: 0.32) and ≥ 40 dB
-    (measured 49.0 and 46.0 dB)."""
+    Beyond a quarter of the frame (SliceRule.huge) they are drawn per splat, spread over their
+    CoC as the lens spreads them, instead of leaving discs or a veil: within 0.04 of the 48-sample
+    accumulation everywhere (the pinhole: 0.32; measured 0.034) and ≥ 40 dB (measured 41.6 dB at
+    4 px)."""
     parts = Parts.empty()
     add_panel(parts, 2, 3.0, {0: (-2.5, 2.5), 1: (-2.0, 2.0)}, (0.3, 0.5, 0.8), spacing=0.05)
     rng = np.random.default_rng(3)
@@ -217,7 +218,7 @@ def test_floaters_at_the_lens_do_not_fog_the_frame(backend):
             sliced = r.render(cam, lens, SLICED)
             assert max(l.radius for l in r.sliced_layers) > 70.0
             assert np.abs(pin.rgba - truth.rgba).max() > 0.3  # (what the test tells apart)
-            assert np.abs(sliced.rgba - truth.rgba).max() < 0.03
+            assert np.abs(sliced.rgba - truth.rgba).max() < 0.04
             assert psnr(sliced.rgba, truth.rgba) >= 40.0
     finally:
         r.release()
@@ -238,27 +239,35 @@ def test_a_cluster_cut_by_the_frame_border_is_blurred_from_its_guard_band(backen
     scene = parts.build("srgb", "cluster")
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 80, 60, 70.0)
     lens = Lens(3.0, 2 * 40.0 / (1 / 0.3 - 1 / 3.0))
+    sliced_all = replace(SLICE_RULE, huge=math.inf)  # the guard band of a sliced layer (at 80 px wide the default draws 40 px per splat)
     r = get_backend(backend, scene)
     try:
         truth = make_references(r, cam, lens, RenderSettings(), 64, False, lambda: None).physical
+        r.slice_rule = sliced_all
         sliced = r.render(cam, lens, SLICED)
         assert r._sliced.guard == 32 and r.read().rgba.shape == (60, 80, 4)
     finally:
         r.release()
-    assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens).rgba) >= MIN_PSNR
-    repeated = render_reference_sliced(scene, cam, lens, rule=replace(SLICE_RULE, guard=0.0))
+    assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens, rule=sliced_all).rgba) >= MIN_PSNR
+    repeated = render_reference_sliced(scene, cam, lens, rule=replace(sliced_all, guard=0.0))
     assert psnr(sliced.rgba, truth.rgba) >= 40.0
     assert psnr(sliced.rgba, truth.rgba) >= psnr(repeated.rgba, truth.rgba) + 5.0
 
 
 @pytest.mark.parametrize("backend", ["quad", "compute"])
-def test_a_bush_at_the_lens_does_not_fog_the_frame(backend):
+def test_a_bush_at_the_lens_is_carried_by_the_refinement(backend):
     """300 leaves 0.12–0.45 units from the lens (CoC 48–96 px against an 80 × 60 frame) over the
-    upper left, before a wall in focus at 3. Through the lens they hide each other: blurred and
-    composited as independent 15 % layers they fog the frame (measured 21.5 and 18.4 dB against
-    the 64-sample lens); with the layers beyond an eighth of the frame's side widening threefold
-    (SliceRule.wide) and their edges in the gaps between leaves (SliceRule.snap) the frame is 25.6
-    and 28.0 dB, above the best published kernel (22.6, 21.7)."""
+    upper left, before a wall in focus at 3: the case no single pass gets right. Through the lens
+    the leaves hide each other; blurred as independent layers (every splat sliced) or as
+    independent splats (the per-splat anchors, and the default, which draws splats blurred beyond
+    a quarter of the frame per splat) they over-cover: measured against the 64-sample lens at 4 and
+    8 px, the default 21.0 / 18.6 dB, every splat sliced 21.5 / 18.4, the best anchor 22.6 / 21.7,
+    the pinhole 22.8 / 19.9. The refinement's passes share lens positions across the leaves:
+    stage 4 is 28.8 / 25.5 dB (≥ 3 dB over the pinhole and every anchor asserted), and the
+    default's single pass is the per-splat image of the leaves (within 0.5 dB of the anchor at
+    the default k = 1/4 asserted)."""
+    from dofview.rendering.progressive import render_lens_samples
+
     parts = Parts.empty()
     add_panel(parts, 2, 3.0, {0: (-2.5, 2.5), 1: (-2.0, 2.0)}, (0.8, 0.75, 0.3), spacing=0.05)
     rng = np.random.default_rng(5)
@@ -269,30 +278,28 @@ def test_a_bush_at_the_lens_does_not_fog_the_frame(backend):
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 80, 60, 70.0)
     r = get_backend(backend, scene)
     try:
+        pinhole = r.render(cam, Lens(3.0, 0.0), SLICED)
         for blur in (4.0, 8.0):  # px at depth 1
             lens = Lens(3.0, 2 * blur / (1 / 1.0 - 1 / 3.0))
             truth = make_references(r, cam, lens, RenderSettings(), 64, False, lambda: None).physical
             sliced = r.render(cam, lens, SLICED)
-            wide = len(r.sliced_layers)
-            r.slice_rule = replace(SLICE_RULE, wide=1e9)
-            narrow = r.render(cam, lens, SLICED)
-            assert len(r.sliced_layers) >= wide + 5
-            r.slice_rule = None
+            assert r.sliced_layers[0].lensed
             anchors = [psnr(r.render(cam, lens, replace(ANCHOR, k=k)).rgba, truth.rgba) for k in (1 / 9, 1 / 4, 1.0)]
+            stage4 = render_lens_samples(r, cam, lens, SLICED, 4)
             assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens).rgba) >= MIN_PSNR
-            assert psnr(sliced.rgba, truth.rgba) >= psnr(narrow.rgba, truth.rgba) + 2.0
-            assert psnr(sliced.rgba, truth.rgba) >= max(anchors) + 1.0
+            assert abs(psnr(sliced.rgba, truth.rgba) - anchors[1]) <= 0.5
+            assert psnr(stage4.rgba, truth.rgba) >= max(psnr(pinhole.rgba, truth.rgba), *anchors) + 3.0
     finally:
         r.release()
 
 
-def test_floaters_before_a_slanted_floor_leave_no_discs(monkeypatch):
+def test_floaters_before_a_slanted_floor_leave_no_discs():
     """20 floaters 0.1–0.3 units from the lens over a floor crossing many layers (160 × 120, CoC
     of the floaters up to 124 px). In the pinhole each hides the floor under it, but through the
-    lens it hides nothing: were visibility taken from what such a veil hid, the resolve would fill
-    the floor's cuts between layers only halfway there and each floater would leave a disc of
-    seams. The 48-sample lens: 36.8 dB measured (≥ 35 asserted), 33.4 with the veils' visibility
-    taken (the CPU twin with SliceRule.wide's veils switched off)."""
+    lens it hides nothing: sliced, the resolve fills the floor's cuts between layers only halfway
+    under each and every floater leaves a disc of seams; drawn per splat beyond a quarter of the
+    frame (SliceRule.huge), they spread thin over the floor as the lens spreads them: the 48-sample
+    lens, 36.2 dB measured (≥ 35 asserted), 33.4 with every splat sliced."""
     floor, cam, lens = receding_floor(160, 120, 10.0)
     rng = np.random.default_rng(4)
     d = rng.uniform(0.1, 0.3, 20)
@@ -311,12 +318,9 @@ def test_floaters_before_a_slanted_floor_leave_no_discs(monkeypatch):
     finally:
         r.release()
     assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens).rgba) >= MIN_PSNR
-    plan_frame = reference.plan_frame
-    monkeypatch.setattr(reference, "plan_frame",
-                        lambda *a, **k: replace(plan := plan_frame(*a, **k), veils=[False] * len(plan.layers)))
-    unveiled = render_reference_sliced(scene, cam, lens)
+    all_sliced = render_reference_sliced(scene, cam, lens, rule=replace(SLICE_RULE, huge=math.inf))
     assert psnr(sliced.rgba, truth.rgba) >= 35.0
-    assert psnr(sliced.rgba, truth.rgba) >= psnr(unveiled.rgba, truth.rgba) + 2.0
+    assert psnr(sliced.rgba, truth.rgba) >= psnr(all_sliced.rgba, truth.rgba) + 2.0
 
 
 def test_sliced_beats_the_published_kernels_against_the_thin_lens():

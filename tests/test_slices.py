@@ -55,17 +55,24 @@ def test_slice_edges_grow_from_a_focus_slice_and_cover_the_range():
     assert e[0] >= 12.0 and e[-1] <= -30.0
 
 
-def test_layers_widen_threefold_beyond_an_eighth_of_the_frame():
-    narrow = slice_edges(-5.0, 100.0, SLICE_RULE)
-    wide = slice_edges(-5.0, 100.0, SLICE_RULE, frame=160.0)  # beyond 20 px of CoC
-    np.testing.assert_array_equal(wide[wide <= 20.0 + 1e-9][-len(narrow[narrow <= 20.0]):], narrow[narrow <= 20.0])
-    front = wide[::-1][wide[::-1] > 0]  # ascending edges in front of focus
-    steps = np.diff(front)
-    grown = np.nonzero(front[:-1] >= 20.0)[0]
-    assert len(grown) >= 1 and np.allclose(steps[grown[1:]] / steps[grown[:-1]], 3.0)
-    assert len(wide) <= len(narrow) - 6  # 4 layers beyond 20 px instead of 10
+def test_huge_coc_splats_leave_the_layers_beyond_a_fraction_of_the_frame_in_the_kernels_own_blur():
+    """SliceRule.huge is a fraction of the frame's larger side, in pixels of the kernel's own blur:
+    a refinement stage of N lens cells (size 1/√N) keeps slicing splats the whole lens would set
+    aside, so that as N grows every pass is planned as its own small kernel needs and the stages
+    converge to the lens (issue 31: a rule in absolute pixels kept firing at every N)."""
+    z = 1.0 / np.linspace(0.05, 5.0, 400)[::-1]  # nearest first: c from 1 to 99 px
+    lens = Lens(1.0, 40.0)  # c = 20·(1/z − 1)
+    rule = replace(SLICE_RULE, huge=0.25)
+    whole = plan_layers(z.astype(np.float32), lens, near=0.01, rule=rule, frame=240.0)  # 60 px
+    assert whole[0].lensed and math.isinf(whole[0].radius) and not any(l.lensed for l in whole[1:])
+    c = signed_coc(z, lens)
+    assert whole[0].end == int(np.sum(c > 60.0)) and all(l.radius <= 60.0 for l in whole[1:])
+    cell = plan_layers(z.astype(np.float32), lens, near=0.01, rule=rule, size=0.25, frame=240.0 / 0.25)
+    assert not any(l.lensed for l in cell)  # 99 px of whole-lens blur is 25 px of a 16-cell stage's
+    edges = slice_edges(-5.0, 100.0, rule, frame=240.0)
+    assert edges[0] == pytest.approx(60.0) and np.all(np.diff(edges) < 0)
     with pytest.raises(DofviewError):
-        SliceRule(wide_growth=1.0)
+        SliceRule(huge=0.0)
 
 
 def test_edges_snap_into_the_widest_gap_between_splats_within_their_reach():
@@ -85,8 +92,8 @@ def test_edges_snap_into_the_widest_gap_between_splats_within_their_reach():
 def test_layers_are_contiguous_ranges_and_huge_coc_splats_are_set_aside():
     z = np.array([-1.0, 0.005, 0.02, 0.5, 1.0, 1.0, 2.0, 50.0], np.float32)  # draw order, nearest first
     lens = Lens(1.0, 20.0)  # c = 10·(1/z − 1)
-    huge = replace(SLICE_RULE, huge=80.0)
-    layers = plan_layers(z, lens, near=0.01, rule=huge)
+    huge = replace(SLICE_RULE, huge=0.5)
+    layers = plan_layers(z, lens, near=0.01, rule=huge, frame=160.0)  # beyond 80 px of blur
     assert layers[0].first == 2  # the two culled ones are left out
     assert layers[0].lensed and layers[0].end == 3 and layers[0].scale == 1  # c(0.02) = 490 px > huge
     assert [(l.first, l.end) for l in layers[1:]] == [(3, 4), (4, 6), (6, 7), (7, 8)]
@@ -94,11 +101,11 @@ def test_layers_are_contiguous_ranges_and_huge_coc_splats_are_set_aside():
     # each layer's radius: its splats' largest |c|, its level by SLICE_RULE.limit (3 px)
     assert [l.radius for l in layers[1:]] == pytest.approx([10.0, 0.0, 5.0, 9.8], rel=1e-6)
     assert [l.scale for l in layers[1:]] == [4, 1, 2, 4]  # one splat a layer: its smallest |c| is its largest
-    finer = plan_layers(z, lens, near=0.01, rule=huge, size=0.5)  # a lens cell half the aperture's size
+    finer = plan_layers(z, lens, near=0.01, rule=huge, size=0.5, frame=320.0)  # a lens cell half the aperture's size
     assert [l.scale for l in finer[1:]] == [2, 1, 1, 2]
     stale = plan_layers(np.array([0.5, 2.0, 1.0, 50.0], np.float32), lens, near=0.01)  # an earlier view's order
     assert [l.first for l in stale] == sorted(l.first for l in stale) and stale[-1].end == 4
-    # by default every splat is sliced, however near (docs/BENCHMARKS.md: the near-wall room)
+    # without a frame every splat is sliced, however near
     everything = plan_layers(z, lens, near=0.01)
     assert not any(l.lensed for l in everything) and everything[0].radius == pytest.approx(490.0, rel=1e-6)
 
@@ -113,11 +120,9 @@ def test_every_splat_lies_within_its_layers_coc_range():
     assert all(a.end == b.first for a, b in zip(layers, layers[1:]))
     for layer in layers:
         part = c[layer.first:layer.end]
-        if layer.lensed:
-            assert np.all(np.abs(part) > SLICE_RULE.huge)
-        else:
-            assert np.abs(part).max() == pytest.approx(layer.radius, rel=1e-6)
-            assert layer.scale == SLICE_RULE.scale(float(np.abs(part).min()))
+        assert not layer.lensed  # no frame: nothing is set aside
+        assert np.abs(part).max() == pytest.approx(layer.radius, rel=1e-6)
+        assert layer.scale == SLICE_RULE.scale(float(np.abs(part).min()))
 
 
 def test_signed_coc_is_positive_in_front_of_focus():
@@ -126,7 +131,7 @@ def test_signed_coc_is_positive_in_front_of_focus():
 
 
 def test_rule_refuses_nonsense():
-    for kw in ({"width": 0.0}, {"growth": 0.9}, {"huge": 0.1}, {"limit": 0.5}, {"spread": -1.0}, {"limit": math.nan}):
+    for kw in ({"width": 0.0}, {"growth": 0.9}, {"huge": 0.0}, {"huge": -1.0}, {"limit": 0.5}, {"spread": -1.0}, {"limit": math.nan}):
         with pytest.raises(DofviewError):
             SliceRule(**kw)
     assert [SLICE_RULE.scale(r) for r in (0.0, 3.0, 3.0000001, 6.0, 6.5, 16.0)] == [1, 1, 1, 2, 4, 8]

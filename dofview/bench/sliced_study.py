@@ -60,7 +60,7 @@ def parse_rule(text: str) -> SliceRule:
 
 
 def rule_name(rule: SliceRule) -> str:
-    changed = [f"{k}={getattr(rule, k):g}" for k in ("width", "growth", "huge", "limit", "spread", "guard", "wide", "wide_growth", "snap")
+    changed = [f"{k}={getattr(rule, k):g}" for k in ("width", "growth", "huge", "limit", "spread", "guard", "snap")
                if getattr(rule, k) != getattr(SLICE_RULE, k)]
     return "sliced" + (f" ({', '.join(changed)})" if changed else "")
 

@@ -321,6 +321,6 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
         blend[outside] = 0.0
         sums[outside] = 0.0
         layers.append((blend, sums))
-    colour, sums = sliced_image(layers, plan, lens, rule, cell, guard, frame.edges, frame.veils)
+    colour, sums = sliced_image(layers, plan, lens, rule, cell, guard, frame.edges)
     sums[..., 2] = 0.0  # (the visibility the layers kept there)
     return _frame(colour, sums, encoded)

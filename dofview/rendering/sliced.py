@@ -20,8 +20,9 @@ Front to back, each layer is blended by the backend as a pinhole with the frame'
    once the run ends;
 
 and slice_resolve.frag writes the frame into the renderer's targets: "over", scaled up to the
-visible coverage where a cut between layers left it short, and the accumulated depth sums. With a finite SliceRule.huge the splats beyond
-it form a front and a back layer drawn by the per-splat method (the benchmark's comparison). At
+visible coverage where a cut between layers left it short, and the accumulated depth sums. The
+splats blurred beyond SliceRule.huge of the frame (geometry at the lens) form a front and a back
+layer drawn by the per-splat method with the lens (slices.py says why). At
 A = 0 there is one layer, not blurred: the pinhole frame, drawn straight into the renderer's targets.
 
 Only the pixels a layer's Gaussians can reach (:func:`screen_boxes`) and its blur around them are
@@ -213,10 +214,11 @@ class SlicedDof:
         self._clear(self.frame_fbo, frame)
         self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
-        lensed = (lens, replace(settings, dof="splat"), False)
+        # the huge-CoC front and back layers, drawn blurred, see the lens cell's share of the aperture
+        lensed = (Lens(lens.focus, lens.aperture * math.sqrt(cell.share)), replace(settings, dof="splat"), False)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
-        for layer, box, sides, veil in zip(plan.layers, plan.windows, plan.edges, plan.veils):
+        for layer, box, sides in zip(plan.layers, plan.windows, plan.edges):
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
                 r._prepare(camera, *setup)
@@ -229,10 +231,10 @@ class SlicedDof:
             level = self._level(layer.scale)
             if run and run[0] is not level:
                 self._end_run(run)
-            taps = cell.taps(layer.radius / layer.scale)
+            taps = cell.taps(0.0 if layer.lensed else layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
-            blocks = self._prepare_layer(level, gl_box, layer, lens, rule, veil)
+            blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             if level.run is None:
                 self._gather_layer(level, self.frame_fbo, out, reach, sides)
@@ -290,10 +292,9 @@ class SlicedDof:
             self._norms.write(np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes())
             self._norms_for = (cell, span)
 
-    def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule, veil: bool) -> Box:
+    def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule) -> Box:
         """The layer in the slice target, within ``box`` (GL pixels, whole blocks of the level),
-        made ready for its gather at ``level`` (slices.prepare; ``veil``: it hides nothing from the
-        visible parts behind it): slice_visible.comp, then
+        made ready for its gather at ``level`` (slices.prepare): slice_visible.comp, then
         slice_reduce.frag down to the level and slice_prepare.frag, after clearing what the last
         layer prepared there wrote (the gather reads around its blocks, where the level must be
         empty); the slice target is cleared in ``box`` once read. Returns the level's blocks."""
@@ -301,7 +302,6 @@ class SlicedDof:
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
-        self._visible["u_veil"].value = veil
         self._run(self._visible, box)
         colour, depth, region = self.slice_colour, self.slice_depth, box
         prog, vao = self._reduce
@@ -325,7 +325,7 @@ class SlicedDof:
                    {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
-                    "u_rmax": layer.radius / s},
+                    "u_rmax": 0.0 if layer.lensed else layer.radius / s},
                    [colour, depth, self._norms], region)
         if s == 1:
             self._clear(self.slice_fbo, box)

@@ -38,14 +38,19 @@ Seams: where a surface is cut between two layers, their blurred parts are comple
 (each layer's coverage under the pinhole transmittance in front of it) keeps a surface whole but
 cannot show what a blurred foreground edge hid; the resolve (:func:`resolve`) scales the "over"
 composite up to that sum's coverage (capped at 1) where it falls short, so cuts close and hidden
-surfaces still show. Layers blurred beyond SliceRule.wide of the frame (veils: floaters at the
-lens) take no visibility from what lies behind them: through the lens they hide nothing there.
+surfaces still show.
 
-Near-camera Gaussians indoors, blurred by hundreds of pixels, are sliced like the rest (at levels
-down to a few texels, their light kept): a wall a hand's breadth from the lens stays an opaque blur.
-A finite :attr:`SliceRule.huge` instead draws the splats beyond it by the per-splat method as a
-front and a back layer, where energy normalisation makes them nearly vanish (the benchmark
-compares the two: docs/BENCHMARKS.md, "Sliced depth of field", indoors).
+Geometry at the lens (rooms, corridors: a wall beside the camera, floaters): splats blurred beyond
+:attr:`SliceRule.huge` of the frame leave the layers for a front and a back layer drawn by the
+per-splat method with the lens, where energy normalisation spreads them thin, as physically they
+nearly vanish. Sliced, they fog a room: a surface seen at a grazing angle near the lens is cut into
+many layers, and blurring each layer's pinhole image gives every slice of the wall its pinhole
+width, while through the lens it is seen nearly edge-on from the lens points that carry its light
+to a pixel (a wall 3 cm beside a 7.7 cm aperture, sliced to the near plane, covers the frame ten
+times over in the image-space model where the lens gives it 23 %); no one pass can be right there,
+and the refinement is (docs/BENCHMARKS.md, "Places"). Every rule in pixels of blur holds for the
+kernel's own blur, which shrinks with a lens cell, so that every refinement stage is planned as its
+cells need and the stages converge to the lens.
 
 This module is the CPU twin of the GL path (rendering/sliced.py), pass for pass: images are in
 GL orientation there (rows from the bottom), so :func:`sliced_image` flips its inputs, and blocks
@@ -75,31 +80,23 @@ class SliceRule:
         width: width of the layer around the focus plane, px of CoC (it spans [−width/2, width/2]).
         growth: each layer farther from focus is this factor wider than the one before (≥ 1):
             uniform in 1/z near focus, a relative step where the blur is large.
-        huge: |c| (px) from which splats leave the layers for the per-splat front/back layers;
-            inf (the default) keeps every splat in a layer.
+        huge: |c|, as a fraction of the frame's larger side, from which splats leave the layers
+            for the per-splat front and back layers (inf keeps every splat in a layer).
         limit: largest blur radius px gathered at full resolution; a layer blurred further
             blurs at the 1/2ᵏ resolution that brings its smallest radius to ≤ limit.
         spread: β, the variance (px², per axis, per s² − 1) that the box average and the bilinear
             upsampling of a 1/s level add; each radius there is shrunk by it: r′² = r² − 4β(s² − 1).
         guard: the widest guard band, as a fraction of the frame's larger side (:func:`guard_band`).
-        wide: |c| beyond which layers widen by ``wide_growth`` each instead, as a fraction of the
-            frame's larger side. Blurs that large spread a layer over much of the frame, and
-            compositing blurred layers treats them as independent, while the parts of one object
-            near the lens hide each other through the whole lens (a bush at the lens, cut into
-            fifteen-percent layers, fogs the frame; docs/BENCHMARKS.md, "indoors").
-        wide_growth: the widening factor there (≥ growth).
         snap: how far an edge between layers may move, as a fraction of the narrower of its two
             layers, to fall into the widest gap between the splats' CoCs there (:func:`snap_edges`).
     """
 
     width: float = 1.0
     growth: float = 1.15
-    huge: float = math.inf
+    huge: float = 0.25
     limit: float = 3.0
     spread: float = 1.0 / 6.0
     guard: float = 0.125
-    wide: float = 0.125
-    wide_growth: float = 3.0
     snap: float = 0.3
 
     def __post_init__(self) -> None:
@@ -107,15 +104,12 @@ class SliceRule:
             raise DofviewError(f"slice width must be a finite number of pixels > 0, got {self.width}")
         if not (math.isfinite(self.growth) and self.growth >= 1.0):
             raise DofviewError(f"slice growth must be a finite factor ≥ 1, got {self.growth}")
-        if not self.huge > self.width / 2:
-            raise DofviewError(f"huge-CoC threshold must exceed half the slice width, got {self.huge}")
+        if not self.huge > 0.0:
+            raise DofviewError(f"huge-CoC threshold must be a fraction of the frame > 0, got {self.huge}")
         if not (math.isfinite(self.limit) and self.limit >= 1.0):
             raise DofviewError(f"full-resolution blur limit must be a finite radius ≥ 1 px, got {self.limit}")
         if not (math.isfinite(self.spread) and self.spread >= 0.0):
             raise DofviewError(f"level spread must be a finite variance ≥ 0, got {self.spread}")
-        if not (self.wide > 0.0 and math.isfinite(self.wide_growth) and self.wide_growth >= self.growth):
-            raise DofviewError(f"wide layers need a threshold > 0 and a growth ≥ {self.growth}, got "
-                               f"{self.wide}, {self.wide_growth}")
         if not 0.0 <= self.snap < 0.5:
             raise DofviewError(f"edge snap must be a fraction in [0, ½), got {self.snap}")
         if not (math.isfinite(self.guard) and self.guard >= 0.0):
@@ -149,18 +143,17 @@ def signed_coc(depth: np.ndarray, lens: Lens) -> np.ndarray:
 
 def slice_edges(c_min: float, c_max: float, rule: SliceRule, frame: float = math.inf) -> np.ndarray:
     """(K + 1,) float64 layer edges in signed CoC px, descending (front to back), covering
-    [max(c_min, −huge), min(c_max, huge)]: the focus layer [−w/2, w/2], then layers of width
-    w·g, w·g², … outwards on either side, growing by ``wide_growth`` instead beyond
-    ``wide``·``frame`` px (``frame``: the frame's larger side, px). Layer i spans
-    edges[i] ≥ c > edges[i + 1]."""
-    lo, hi = max(c_min, -rule.huge), min(c_max, rule.huge)
-    wide = rule.wide * frame
+    [max(c_min, −H), min(c_max, H)], H = huge·``frame`` (``frame``: the frame's larger side in
+    px of the kernel's blur, :func:`plan_layers`): the focus layer [−w/2, w/2], then layers of
+    width w·g, w·g², … outwards on either side. Layer i spans edges[i] ≥ c > edges[i + 1]."""
+    huge = rule.huge * frame
+    lo, hi = max(c_min, -huge), min(c_max, huge)
 
     def side(limit: float) -> list[float]:
         out, e, w = [], rule.width / 2, rule.width
         while e < limit:
-            w *= rule.growth if e < wide else rule.wide_growth
-            e = min(e + w, rule.huge)
+            w *= rule.growth
+            e = min(e + w, huge)
             out.append(e)
         return out
 
@@ -212,9 +205,10 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
                 size: float = 1.0, frame: float = math.inf) -> list[Layer]:
     """The non-empty layers, front to back, of Gaussians at camera depths ``depth`` (N,) scene
     units in draw order, nearest first; those at z ≤ ``near`` (culled) join the layer before them.
-    ``frame``: the frame's larger side px (where layers widen: SliceRule.wide).
     ``size``: the kernel's scale against the whole aperture's (√share of a lens cell: its
     equal-area disk), which sets each layer's resolution: a small cell's shape needs a finer level.
+    ``frame``: the frame's larger side in px of the kernel's blur (px / ``size``), which
+    SliceRule.huge is a fraction of.
     An order sorted for an earlier view (the viewer's background sort) is nearly sorted: each
     Gaussian takes the farthest layer of those before it, so the ranges stay contiguous."""
     depth = np.asarray(depth, np.float64)
@@ -226,7 +220,8 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
     k = len(edges) - 1
     # descending edges: count the edges strictly above c (np.searchsorted wants ascending)
     index = np.clip(k - np.searchsorted(edges[::-1], c, side="left"), 0, k - 1)
-    index = np.where(c > rule.huge, -1, np.where(c < -rule.huge, k, index))
+    huge = rule.huge * frame
+    index = np.where(c > huge, -1, np.where(c < -huge, k, index))
     key = np.full(len(depth), -2, np.int64)  # -2: culled; -1 the front layer, 0…k−1 the slices, k the back layer
     key[live] = index
     key = np.maximum.accumulate(key)
@@ -239,7 +234,7 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
         if end <= first:
             continue
         if v in (-1, k):
-            layers.append(Layer(first, end, True, 0.0, 1))
+            layers.append(Layer(first, end, True, math.inf, 1))
             continue
         part = coc[first:end]
         lo, hi = float(np.nanmin(part)), float(np.nanmax(part))
@@ -272,7 +267,7 @@ def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, 
     of margin; a lensed layer (blurred by the lens as drawn) the frame. Every draw runs it: float32,
     and the layers' ranges reduced in one pass (≈ 15 ms a million Gaussians on one core)."""
     w, h = camera.width, camera.height
-    live = [layer for layer in layers if not layer.lensed]  # contiguous: lensed layers are the ends
+    live = [layer for layer in layers if not math.isinf(layer.radius)]  # the huge-CoC layers are the ends
     if not live:
         return [(0, 0, w, h)] * len(layers)
     # the footprints in the scene's own order (contiguous arithmetic), then four 1-D gathers into
@@ -291,7 +286,7 @@ def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, 
     x0, y0 = (np.clip(np.floor(np.minimum.reduceat((a - reach)[idx], starts)), -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
     x1, y1 = (np.clip(np.ceil(np.maximum.reduceat((a + reach)[idx], starts)) + 1, -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
     boxes = iter(zip(x0.astype(int), y0.astype(int), x1.astype(int), y1.astype(int)))
-    return [(0, 0, w, h) if layer.lensed else tuple(int(b) for b in next(boxes)) for layer in layers]
+    return [(0, 0, w, h) if math.isinf(layer.radius) else tuple(int(b) for b in next(boxes)) for layer in layers]
 
 
 def layer_reach(layer: Layer) -> int:
@@ -359,14 +354,12 @@ class FramePlan:
         guard: pixels of guard band on every side of the frame (:func:`guard_band`).
         windows: per layer the pixels of the guarded image where it is blended (:func:`layer_windows`).
         edges: per layer the sides beyond which its gather repeats the edge (:func:`layer_edges`).
-        veils: per layer, blurred beyond SliceRule.wide of the frame (:func:`prepare`).
     """
 
     layers: list[Layer]
     guard: int
     windows: list[Box]
     edges: list[Edges]
-    veils: list[bool]
 
     @property
     def pinhole(self) -> bool:
@@ -381,14 +374,13 @@ def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, le
     ``size`` (plan_layers). A pinhole frame (:attr:`FramePlan.pinhole`) gets no boxes: it is drawn
     whole."""
     w, h = camera.width, camera.height
-    layers = plan_layers(camera_depths(scene.means, camera)[order], lens, near, rule, size, max(w, h))
-    whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers), [False] * len(layers))
+    layers = plan_layers(camera_depths(scene.means, camera)[order], lens, near, rule, size, max(w, h) / size)
+    whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers))
     if not layers or whole.pinhole:
         return whole
     boxes = screen_boxes(scene, largest, order, camera, layers, near)
     guard = guard_band(layers, boxes, w, h, rule)
-    veils = [not layer.lensed and layer.radius > rule.wide * max(w, h) for layer in layers]
-    return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard), veils)
+    return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard))
 
 
 # ---- the aperture ----------------------------------------------------------------------------------
@@ -533,7 +525,7 @@ def from_blend_space(rgba: np.ndarray, encoded: bool) -> np.ndarray:
 
 
 def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, lens: Lens, layer: Layer,
-            rule: SliceRule, cell: LensCell, taps: np.ndarray, veil: bool = False) -> tuple[np.ndarray, np.ndarray]:
+            rule: SliceRule, cell: LensCell, taps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One layer made ready for its gather at its level 1/s (slice_visible.comp, slice_reduce.frag,
     slice_prepare.frag).
 
@@ -541,19 +533,15 @@ def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, l
     (Σw·z, Σw/z, 0, Σw); ``acc_depth`` (H, W, 4) float64 the depth sums of the layers in front,
     to which this layer's are added under their transmittance T (in place): the pinhole's depth.
     The layer's visible coverage V·α rides along with its depth sums through the 2 × 2 averages
-    (:func:`reduce2`) down to the level, V the transmittance of the layers in front that are not
-    veils, kept in the accumulator's third component: a ``veil`` (a layer blurred beyond
-    :attr:`SliceRule.wide` of the frame, :attr:`FramePlan.veils`) spreads too far to hide anything
-    behind it from the lens, and taking visibility from what it hid in the pinhole left the
-    resolve's fill of the cuts behind it half done (docs/BENCHMARKS.md, "Indoors"). Returns ``a`` (h, w, 4) the level's colour over N(ρ) =
+    (:func:`reduce2`) down to the level, V the transmittance of the layers in front, kept in the
+    accumulator's third component. Returns ``a`` (h, w, 4) the level's colour over N(ρ) =
     Σ_taps w(d, ρ) of each texel's signed CoC ρ (level px, shrunk: see the module docstring) and
     ``b`` (h, w, 2) (ρ, visible coverage / N(ρ))."""
     trans = 1.0 - acc_depth[..., 3]
     col = np.asarray(colour, np.float64)
     visible = (1.0 - acc_depth[..., 2]) * col[..., 3]
     acc_depth += trans[..., None] * depth_sums
-    if not veil:
-        acc_depth[..., 2] += visible
+    acc_depth[..., 2] += visible
     dep = np.array(depth_sums, np.float64)
     dep[..., 2] = visible
     s = layer.scale
@@ -642,15 +630,13 @@ def resolve(over: np.ndarray, visible: np.ndarray) -> np.ndarray:
 
 def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer], lens: Lens,
                  rule: SliceRule = SliceRule(), cell: LensCell | None = None,
-                 guard: int = 0, edges: list[Edges] | None = None,
-                 veils: list[bool] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 guard: int = 0, edges: list[Edges] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The depth-of-field image from the layers of ``plan`` as blended, front to back: per layer
     (colour (H, W, 4) premultiplied RGBA *in the blend space*, depth sums (H, W, 4) (Σw·z, Σw/z,
     0, Σw)), image orientation (rows downwards), blurred by the kernel of ``cell`` (default: the
     whole disk). The layers are blended over the frame and a guard band of ``guard`` pixels on
     every side (:func:`guard_band`), which the result leaves out; the gather repeats each layer's
-    edges as ``edges`` (:func:`layer_edges`; default: every side) says, and ``veils``
-    (:func:`prepare`; default: none) hide nothing from the visible parts behind them. Returns the colour
+    edges as ``edges`` (:func:`layer_edges`; default: every side) says. Returns the colour
     (H − 2·guard, W − 2·guard, 4) float64 in the blend space and the depth sums alike of the
     pinhole (the layers composited unblurred)."""
     cell = cell or Aperture().whole()
@@ -667,11 +653,10 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             visible += upsample(r_vis, s, h, w)
             run.clear()
 
-    for (colour, depth_sums), layer, sides, veil in zip(layers, plan, edges or [(True,) * 4] * len(plan),
-                                                        veils or [False] * len(plan)):
-        taps = cell.taps(layer.radius / layer.scale)
+    for (colour, depth_sums), layer, sides in zip(layers, plan, edges or [(True,) * 4] * len(plan)):
+        taps = cell.taps(0.0 if layer.lensed else layer.radius / layer.scale)
         a, b = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64), acc_depth,
-                       lens, layer, rule, cell, taps, veil)
+                       lens, layer, rule, cell, taps)
         blurred, vis = scatter(a, b, cell, taps, sides)
         if layer.scale == 1:
             end_run()
