@@ -1,8 +1,8 @@
 """Progressive thin lens against the physical truth: stages of sub-aperture passes against the
 pinhole average they replaced (issue 23).
 
-For each real scene (one study view, study.py) and each largest blur in view (8 and 16 px,
-sliced_study.cases_for): the PSNR of the display image against the physical truth (the
+For each real scene (one study view, study.py) and place view (dofview/bench/places) and each
+largest blur in view (8 and 16 px, sliced_study.scene_cases): the PSNR of the display image against the physical truth (the
 linear-light average of ``--samples`` pinhole images, variants.make_references) of
 - the anchors' single pass (per-splat, energy normalisation, τ = 1/255, k = 1/9, 1/4, 1) — the
   best of them is the figure to beat — and the default single pass (sliced),
@@ -12,7 +12,7 @@ linear-light average of ``--samples`` pinhole images, variants.make_references) 
   A/√N at progressive.stage_points).
 
     python -m dofview.bench.refinement --scenes DIR [--width 240] [--samples 64] [--only NAME]
-        [--plot docs/images/refinement.png] [--ghosts docs/images/refinement_ghosts.png]
+        [--stages 64] [--lod 1] [--plot docs/images/refinement.png] [--ghosts docs/images/refinement_ghosts.png]
 
 prints one tab-separated line per scene, case, method and N: PSNR, and PSNR over the best anchor.
 """
@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dofview.bench.sliced_study import ANCHOR, SCENES, cases_for
-from dofview.bench.study import ANCHOR_KS, study_views
+from dofview.bench.sliced_study import ANCHOR, SCENES, place_view_names, scene_cases
+from dofview.bench.study import ANCHOR_KS
 from dofview.bench.variants import errors, make_references
 from dofview.frame import Frame, RenderSettings
 from dofview.lens import Lens
@@ -63,10 +63,11 @@ def pinhole_average(renderer: Renderer, camera, lens: Lens, n: int) -> Frame:
     return accumulate(lambda c: renderer.render(c, pin, st), camera, lens, n, points=disk_sequence(n))
 
 
-def study_case(renderer: Renderer, camera, lens: Lens, samples: int,
-               tm: Tonemap = Tonemap()) -> tuple[list[tuple[str, int, float]], dict[str, Frame]]:
+def study_case(renderer: Renderer, camera, lens: Lens, samples: int, tm: Tonemap = Tonemap(),
+               counts: tuple[int, ...] = COUNTS, stages_only: tuple[int, ...] = ()) -> tuple[list[tuple[str, int, float]], dict[str, Frame]]:
     """(method, N, PSNR) rows of one case, and the frames of the ghost figure (truth, best anchor,
-    both refinements at :data:`GHOST_N`)."""
+    both refinements at :data:`GHOST_N`); ``stages_only``: more stage counts of the default alone
+    (e.g. 64, where the pinhole average and the per-splat stages would cost as much again)."""
     truth = make_references(renderer, camera, lens, RenderSettings(), samples, False, lambda: None).physical
     rows, frames = [], {"truth": truth}
     best = None
@@ -77,7 +78,10 @@ def study_case(renderer: Renderer, camera, lens: Lens, samples: int,
         if best is None or p > best[1]:
             best, frames["best anchor"] = (name, p), f
     rows.append(("sliced", 1, errors(renderer.render(camera, lens, RenderSettings()), truth, tm, False)["psnr"]))
-    for n in COUNTS:
+    for n in stages_only:
+        rows.append(("stages", n, errors(render_lens_samples(renderer, camera, lens, RenderSettings(), n), truth, tm,
+                                         False)["psnr"]))
+    for n in counts:
         f_old = pinhole_average(renderer, camera, lens, n)
         f_new = render_lens_samples(renderer, camera, lens, RenderSettings(), n)
         f_splat = render_lens_samples(renderer, camera, lens, RenderSettings(dof="splat"), n)
@@ -156,24 +160,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", type=Path, required=True, help="folder of the five real scenes")
     ap.add_argument("--width", type=int, default=240)
     ap.add_argument("--samples", type=int, default=64, help="pinhole passes of the truth")
-    ap.add_argument("--only", action="append", help="scene file name; repeatable")
+    ap.add_argument("--only", action="append", help="scene file name or place view (corridor_1, …); repeatable")
+    ap.add_argument("--lod", type=int, default=1, help="the showroom's level (0: 1.5M Gaussians, 1: 747k)")
+    ap.add_argument("--stages", type=int, action="append", default=[],
+                    help="a stage of the default alone beside 2, 4, 8, 16 (e.g. 64); repeatable")
     ap.add_argument("--raster", default="quad")
     ap.add_argument("--plot", type=Path, help="PNG of PSNR against N per scene")
     ap.add_argument("--ghosts", type=Path, help=f"PNG of both refinements at N = {GHOST_N} (first scene, 16 px)")
     args = ap.parse_args(argv)
-    from dofview.io import load_scene
-
-    names = args.only or list(SCENES)
+    names = args.only or [*SCENES, *place_view_names()]
     h = args.width * 3 // 4
     table: dict[tuple[str, str], list[tuple[str, int, float]]] = {}
     for name in names:
-        scene = load_scene(args.scenes / name, progress=False)
-        cam = study_views(scene, 1, args.width, h)[0]
+        scene, cam, lenses = scene_cases(name, args.scenes, args.width, args.lod)
         renderer = get_backend(args.raster, scene)
         t0 = time.perf_counter()
         try:
-            for label, lens in zip(("blur8", "blur16"), cases_for(renderer, cam)):
-                rows, frames = study_case(renderer, cam, lens, args.samples)
+            for label, lens in lenses(renderer):
+                rows, frames = study_case(renderer, cam, lens, args.samples, stages_only=tuple(args.stages))
                 table[(name, label)] = rows
                 best = max(p for m, _, p in rows if m in ANCHOR_KS)
                 for method, n, p in rows:

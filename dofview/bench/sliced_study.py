@@ -4,18 +4,21 @@ lens next to the published per-splat anchors, and its frame time against the pin
     python -m dofview.bench.sliced_study quality --scenes DIR [--width 240] [--samples 64] [--only NAME]
         [--rule KEY=V[,KEY=V]] ... [--markdown TABLE.md] [--figure PNG]
     python -m dofview.bench.sliced_study timing SCENE... [--width 640 --height 360] [--reps 3]
-        [--rule KEY=V[,KEY=V]] ...
+        [--rule KEY=V[,KEY=V]] ... [--places DIR]
 
-quality: per scene (the five real ones; "indoor" and "near_wall", synthetic rooms seen from inside)
-and case (largest blur in view 8 and 16 px, focus at the median depth; for the near wall its CoC,
-60 or 120 px at 240 px wide) one tab-separated line per method: PSNR and SSIM of the display image
+quality: per scene (the five real ones; the views from inside the shared places,
+dofview/bench/places: corridor_1 … showroom_2, focused on their subjects, blur between the 20th and
+95th depth percentiles; "indoor" and "near_wall", synthetic rooms seen from inside) and case
+(largest blur in view 8 and 16 px, focus at the median depth; for the near wall its CoC, 60 or
+120 px at 240 px wide) one tab-separated line per method: PSNR and SSIM of the display image
 against the linear-light average of ``--samples`` pinhole images over the lens disk, and their
 difference to the best anchor (per-splat k = 1/9, 1/4, 1, energy normalisation, τ = 1/255), and
 the layers drawn. Methods: the anchors, then the sliced mode with the default rule
 (slices.SLICE_RULE) and with each ``--rule`` (fields of SliceRule changed, e.g. ``growth=1.3`` or
 ``limit=4,spread=0``). ``--figure``: truth | best anchor | sliced of the first scene's last case.
 
-timing: per scene, backend and case (A = 100 px·unit; largest blur in view 16 px) the median
+timing: per scene (a file, or with ``--places DIR`` a place view such as corridor_1, at its own
+camera and lenses) backend and case (A = 100 px·unit; largest blur in view 16 px) the median
 frame time of the per-splat and the sliced mode (each rule) over interleaved draws, as ratios to
 the pinhole frame's (A = 0, per-splat, default τ: one splatting pass), and the sliced mode's GPU
 memory per megapixel.
@@ -31,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dofview.bench.places import place_views
 from dofview.bench.primitives import Parts
 from dofview.bench.study import ANCHOR_KS, depth_percentiles, study_views
 from dofview.bench.synth import room_scene
@@ -130,9 +134,37 @@ def _merged(a: GaussianScene, b: GaussianScene, name: str) -> GaussianScene:
                          colour_space="srgb", name=name)
 
 
-def scene_cases(name: str, folder: Path, width: int) -> tuple[GaussianScene, Camera, callable]:
-    """The scene, camera and a function renderer → [(label, lens)] of one study scene."""
+PLACES = {"corridor": "corridor.compressed.ply", "kitchen_balcony": "kitchen_balcony.compressed.ply",
+          "showroom": "showroom/lod-meta.json"}
+"""The shared places (rooms seen from inside) by name, as files of the scenes folder; their views
+are dofview.bench.places's (``corridor_1`` …)."""
+
+
+def place_view_names() -> list[str]:
+    """Every place view of dofview/bench/places: ``corridor_1``, ``corridor_2``, …"""
+    return [f"{p}_{i + 1}" for p in PLACES for i in range(len(place_views(p)))]
+
+
+def scene_cases(name: str, folder: Path, width: int, lod: int | None = None) -> tuple[GaussianScene, Camera, callable]:
+    """The scene, camera and a function renderer → [(label, lens)] of one study scene: a file of
+    ``folder``, a synthetic room ("indoor", "near_wall"), or a place view ("corridor_1": the view's
+    camera at ``width``, focused on its subject, largest blur 8 and 16 px between the 20th and 95th
+    depth percentiles, as indoors; ``lod``: the showroom's level)."""
     h = width * 3 // 4
+    place, _, n = name.rpartition("_")
+    if place in PLACES and n.isdigit():
+        from dofview.io import load_scene
+
+        scene = load_scene(folder / PLACES[place], progress=False, **({"lod": lod} if place == "showroom" else {}))
+        view = place_views(place)[int(n) - 1]
+        cam = view.camera.resized(width, round(width * view.camera.height / view.camera.width))
+
+        def place_lenses(renderer: Renderer) -> list[tuple[str, Lens]]:
+            fr = renderer.render(cam, Lens(view.focus, 0.0), pinhole_settings(RenderSettings()))
+            near, far = depth_percentiles(fr, (20.0, 95.0))
+            return [(f"blur{b:g}", Lens(view.focus, aperture_for_blur(b, view.focus, near, far))) for b in (8.0, 16.0)]
+
+        return scene, cam, place_lenses
     if name in ("indoor", "near_wall"):
         scene, cam, *wall = indoor_scene() if name == "indoor" else near_wall_scene()
         cam = cam.resized(width, h)
@@ -194,10 +226,10 @@ def figure(path: Path, frames: dict[str, Frame], res: dict[str, dict], title: st
 
 def quality(args: argparse.Namespace) -> int:
     rules = [SLICE_RULE] + [parse_rule(r) for r in args.rule or []]
-    names = args.only or [*SCENES, "indoor", "near_wall"]
+    names = args.only or [*SCENES, *place_view_names(), "indoor", "near_wall"]
     rows = []
     for name in names:
-        scene, cam, lenses = scene_cases(name, args.scenes, args.width)
+        scene, cam, lenses = scene_cases(name, args.scenes, args.width, args.lod)
         renderer = get_backend(args.raster, scene)
         t0 = time.perf_counter()
         try:
@@ -232,12 +264,16 @@ def timing(args: argparse.Namespace) -> int:
     print("scene\tbackend\tcase\tlayers\tsplat/pinhole\t" + "\t".join(f"{rule_name(r)}/pinhole" for r in rules)
           + "\tpinhole ms\tsliced MB/Mpx")
     for path in args.scenes:
-        scene = load_scene(path, progress=False)
-        cam = study_views(scene, 1, args.width, args.height)[0]
+        place_lenses = None
+        if args.places is not None and str(path) in place_view_names():
+            scene, cam, place_lenses = scene_cases(str(path), args.places, args.width, args.lod)
+        else:
+            scene = load_scene(path, progress=False)
+            cam = study_views(scene, 1, args.width, args.height)[0]
         for backend in ("quad", "compute"):
             r = get_backend(backend, scene)
             try:
-                blur16 = cases_for(r, cam, blurs=(16.0,))[0]
+                blur16 = place_lenses(r)[-1][1] if place_lenses else cases_for(r, cam, blurs=(16.0,))[0]
                 for label, lens in (("A=100", Lens(blur16.focus, 100.0)), ("blur16", blur16)):
                     modes = {"pinhole": (Lens(lens.focus, 0.0), PINHOLE, None), "splat": (lens, PINHOLE, None),
                              **{i: (lens, SLICED, rule) for i, rule in enumerate(rules)}}
@@ -276,7 +312,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="folder of the five real scenes (../shared/scenes; tests/data holds stand-ins for two)")
     q.add_argument("--width", type=int, default=240)
     q.add_argument("--samples", type=int, default=64)
-    q.add_argument("--only", action="append", help="scene file name, 'indoor' or 'near_wall'; repeatable")
+    q.add_argument("--only", action="append",
+                   help="scene file name, place view (corridor_1, …), 'indoor' or 'near_wall'; repeatable")
+    q.add_argument("--lod", type=int, default=1, help="the showroom's level (0: 1.5M Gaussians, 1: 747k)")
     q.add_argument("--raster", default="quad")
     q.add_argument("--rule", action="append", help="a slicing beside the default: KEY=V[,KEY=V] of SliceRule; repeatable")
     q.add_argument("--markdown", type=Path, help="also write the figures as a markdown table to this file")
@@ -287,6 +325,8 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument("--height", type=int, default=360)
     t.add_argument("--reps", type=int, default=3)
     t.add_argument("--rule", action="append", help="a slicing beside the default: KEY=V[,KEY=V] of SliceRule; repeatable")
+    t.add_argument("--places", type=Path, help="folder of the shared places: SCENE may then name a place view")
+    t.add_argument("--lod", type=int, default=1, help="the showroom's level (0: 1.5M Gaussians, 1: 747k)")
     args = ap.parse_args(argv)
     return quality(args) if args.what == "quality" else timing(args)
 
