@@ -97,10 +97,19 @@ def test_preprocess_stage_matches_reference_projection(kernel):
 def test_draw_count_and_memory():
     scene = random_scene(seed=4)
     c, q = ComputeBackend(scene), QuadBackend(scene)
+    splat = RenderSettings(dof="splat")
     for lens in (Lens(4.5, 0.0), Lens(4.5, 300.0)):
-        c.draw(CAM, lens, count=True)
-        q.draw(CAM, lens, count=True)
+        c.draw(CAM, lens, splat, count=True)
+        q.draw(CAM, lens, splat, count=True)
         assert c.stats.drawn == q.stats.drawn > 0
+    # sliced: the compute backend counts the scene as the pinhole projects it, the quads each range
+    # as drawn, where a splat of a lensed (huge-CoC) layer may fall below tau once spread by the lens
+    lens = Lens(4.5, 300.0)
+    c.draw(CAM, lens, count=True)
+    q.draw(CAM, lens, count=True)
+    lensed = sum(layer.end - layer.first for layer in q._sliced.layers if layer.lensed)
+    assert lensed > 0
+    assert c.stats.drawn - lensed <= q.stats.drawn <= c.stats.drawn
     assert c.gpu_bytes >= q.gpu_bytes - 4 * scene.count + PER_GAUSSIAN_BYTES * scene.count + 16 * c.pairs
 
 

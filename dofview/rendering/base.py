@@ -65,6 +65,9 @@ class Renderer(ABC):
     """
 
     name = "base"
+    #: whether each :meth:`_splat_range` counts the Gaussians it draws (True), or the
+    #: :meth:`_prepare` counts every Gaussian of the scene it projects (False)
+    counts_per_range = True
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
         self.ctx = ctx or headless_context()

@@ -66,6 +66,7 @@ class ComputeBackend(Renderer):
     """
 
     name = "compute"
+    counts_per_range = False
 
     @classmethod
     def require(cls, ctx: moderngl.Context, count: int = 0) -> None:

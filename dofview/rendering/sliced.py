@@ -215,7 +215,10 @@ class SlicedDof:
         self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
         # the huge-CoC front and back layers, drawn blurred, see the lens cell's share of the aperture
-        lensed = (Lens(lens.focus, lens.aperture * math.sqrt(cell.share)), replace(settings, dof="splat"), False)
+        # (counted as they are drawn where the backend counts per range; the pinhole setup's
+        # prepare counts the whole scene where it does not)
+        lensed = (Lens(lens.focus, lens.aperture * math.sqrt(cell.share)), replace(settings, dof="splat"),
+                  count and r.counts_per_range)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
         for layer, box, sides in zip(plan.layers, plan.windows, plan.edges):
