@@ -73,7 +73,7 @@ class Renderer(ABC):
         self._encoded = self.encoded_scene
         self.stats = DrawStats(total=scene.count)
         self._counter = self.ctx.buffer(reserve=4)  # Gaussians drawn, counted by the splatting step
-        self._view_key: bytes | None = None  # the view the current draw order was sorted for
+        self._order_key: bytes | None = None  # depth_order.order_key of the view the draw order was sorted for
         self.packed = packed
         self.colour_scale = colour_scale(scene) if packed else 1.0
         self._buffers = self._upload(scene, packed, self.colour_scale)
@@ -167,7 +167,7 @@ class Renderer(ABC):
             b.release()
         self._buffers, self.scene = buffers, scene
         self.stats.total = scene.count
-        self._view_key = None
+        self._order_key = None
         if self._sliced is not None:  # it keeps per-Gaussian data of the scene it was made for
             self._sliced.release()
             self._sliced = None
@@ -265,7 +265,7 @@ class Renderer(ABC):
 
     def forget_order(self) -> None:
         """Drop the draw order, so that the next draw sorts afresh (a benchmark times that sort)."""
-        self._view_key = None
+        self._order_key = None
 
     def _order_for(self, camera: Camera) -> None:
         """The order step of :meth:`draw` (backends that sort in the background override it)."""

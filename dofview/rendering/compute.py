@@ -24,6 +24,7 @@ from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.base import Renderer
 from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
+from dofview.rendering.depth_order import order_key
 from dofview.rendering.gl import compute_shader
 from dofview.rendering.gpu_sort import (
     GpuRadixSort,
@@ -134,9 +135,10 @@ class ComputeBackend(Renderer):
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
-        """Sort all Gaussians front to back on the GPU if the view moved (nothing is read back)."""
-        key = camera.view_key()
-        if key == self._view_key or not self.scene.count:
+        """Sort all Gaussians front to back on the GPU if their depths changed (depth_order.order_key;
+        nothing is read back)."""
+        key = order_key(camera)
+        if key == self._order_key or not self.scene.count:
             return
         n = self.scene.count
         self._bind_scene()
@@ -149,7 +151,7 @@ class ComputeBackend(Renderer):
         scratch = self._pair_buffers(n)[2:]
         out = self.sorter.sort(self._depth_keys, self._order, n, 32, *scratch)
         assert out[1] is self._order  # four passes: the result is back in the input pair
-        self._view_key = key
+        self._order_key = key
 
     def front_to_back(self) -> np.ndarray:
         """(N,) uint32 the current depth order, read back (the sliced mode cuts it into layers each
@@ -182,7 +184,7 @@ class ComputeBackend(Renderer):
         if order is not None and self.scene.count:
             camera, ftb = order
             self._order.write(np.ascontiguousarray(ftb, dtype=np.uint32))
-            self._view_key = camera.view_key()
+            self._order_key = order_key(camera)
 
     def _pair_buffers(self, pairs: int) -> list[moderngl.Buffer]:
         """Tile keys, values and sort scratch for ``pairs`` pairs (grown by half again, never past

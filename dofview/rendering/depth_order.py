@@ -18,6 +18,13 @@ def camera_depths(means: np.ndarray, camera: Camera) -> np.ndarray:
     return means @ r + np.float32(camera.T[2])
 
 
+def order_key(camera: Camera) -> bytes:
+    """Bytes that change exactly when the depth order of the scene can change: camera z depends on
+    R[2] and T[2] only, so a lens-shifted camera (progressive refinement's passes) or a roll about
+    the optical axis keeps the order (Camera.view_key also changes with those)."""
+    return np.concatenate([camera.R[2], camera.T[2:]]).tobytes()
+
+
 def depth_keys(z: np.ndarray) -> np.ndarray:
     """(N,) float32 depths → (N,) uint32 keys in the same order."""
     bits = np.ascontiguousarray(z, dtype=np.float32).view(np.uint32)
