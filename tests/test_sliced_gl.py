@@ -24,7 +24,8 @@ from dofview.io.exr import read_exr
 from dofview.lens import Lens, aperture_for_blur
 from dofview.rendering import get_backend
 from dofview.rendering.depth_order import camera_depths
-from dofview.rendering.progressive import lens_cells
+from dofview.rendering import slices
+from dofview.rendering.progressive import lens_cells, render_lens_samples
 from dofview.rendering import reference
 from dofview.rendering.reference import render_reference_sliced
 from dofview.rendering.slices import SLICE_RULE
@@ -435,3 +436,56 @@ def test_cli_renders_sliced_and_records_it(tmp_path):
         main(["render", str(CARDS), "--dof", "blur", "-o", str(tmp_path / "x.exr")])
     assert bad.value.code == 2
     assert not (tmp_path / "x.exr").exists()
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_the_kernel_tables_are_made_once_per_aperture_and_lens_cell(backend, monkeypatch):
+    """The N(ρ) tables (LensCell.norms) of an aperture are made by its first sliced frame only, and
+    those of refinement's lens cells by the first stage that uses them (issue 28: every sliced frame
+    made and uploaded them again, for a new LensCell each draw)."""
+    scene = load_scene(CARDS, progress=False)
+    cam, lens = _view(scene, 12.0, 64, 48)
+    made = []
+    norms = slices.LensCell.norms
+    monkeypatch.setattr(slices.LensCell, "norms", lambda cell, *a, **k: made.append(cell) or norms(cell, *a, **k))
+    # apertures no other test draws (the tables are kept for the process: one aperture, one set)
+    settings, other = (RenderSettings(blades=7, blade_rotation=float(backend == "quad") + a) for a in (11.25, 13.5))
+    r = get_backend(backend, scene)
+    try:
+        r.draw(cam, lens, settings)
+        assert len(made) == 2  # the fine table and the frame's range
+        made.clear()
+        r.draw(cam, lens, settings)
+        r.draw(cam, lens, settings)
+        assert not made
+        r.draw(cam, lens, other)  # another aperture: its own tables
+        assert len(made) == 2
+        render_lens_samples(r, cam, lens, settings, 3)
+        assert len(made) > 2
+        made.clear()
+        render_lens_samples(r, cam, lens, settings, 3)
+        assert not made
+    finally:
+        r.release()
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_at_aperture_zero_no_gaussian_is_planned(backend, monkeypatch):
+    """A = 0 is the pinhole frame: the plan looks at no Gaussian (issue 28: it planned every one)."""
+    scene = load_scene(CARDS, progress=False)
+    cam, lens = _view(scene, 12.0, 64, 48)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a Gaussian was planned at A = 0")
+
+    r = get_backend(backend, scene)
+    try:
+        pin = r.render(cam, Lens(lens.focus, 0.0), RenderSettings(dof="splat"))
+        monkeypatch.setattr(slices, "plan_layers", refuse)
+        monkeypatch.setattr(slices, "screen_boxes", refuse)
+        monkeypatch.setattr(type(r), "front_to_back", refuse)
+        sliced = r.render(cam, Lens(lens.focus, 0.0), SLICED)
+        assert [(l.first, l.end, l.radius) for l in r.sliced_layers] == [(0, scene.count, 0.0)]
+    finally:
+        r.release()
+    assert psnr(sliced.rgba, pin.rgba) >= 60.0

@@ -36,6 +36,7 @@ megapixel of frame measured at 640×360).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -56,6 +57,7 @@ from dofview.rendering.slices import (
     Layer,
     LensCell,
     SliceRule,
+    pinhole_plan,
     plan_frame,
     rule_for,
 )
@@ -65,6 +67,14 @@ MAX_TAPS = 256
 largest radius at a level is the rule's limit + 2, 8 with blades)."""
 MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
+
+
+@functools.lru_cache(maxsize=512)  # 32 KB each: a refinement stage of 256 lens cells at two ranges
+def _norm_tables(cell: LensCell, span: float) -> bytes:
+    """The N(ρ) tables slice_prepare.frag reads for ``cell`` (its fine one, and one over [0, ``span``]),
+    made once per cell and range: the whole aperture's cell is one object per aperture
+    (Aperture.whole) and refinement's cells one per stage (progressive.lens_cells)."""
+    return np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes()
 
 
 def _intersect(a: Box, b: Box) -> Box:
@@ -195,8 +205,11 @@ class SlicedDof:
         r = self.r
         rule = r.slice_rule or rule_for(settings.blades)
         cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-        plan = plan_frame(r.scene, self._largest, r.front_to_back(), camera, lens, settings.near, rule,
-                          math.sqrt(cell.share))
+        if lens.aperture == 0.0:  # nothing to plan: no Gaussian is looked at
+            plan = pinhole_plan(r.scene.count, camera.width, camera.height)
+        else:
+            plan = plan_frame(r.scene, self._largest, r.front_to_back(), camera, lens, settings.near, rule,
+                              math.sqrt(cell.share))
         self.layers, self.guard = plan.layers, plan.guard
         if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
@@ -274,7 +287,8 @@ class SlicedDof:
     def _set_cell(self, cell: LensCell, radius: float) -> None:
         """Set the gather's kernel (slice_kernel.glsl), and the tables of its N(ρ) that the prepare
         reads (LensCell.norms) for |ρ| ≤ ``radius`` (level px: the largest blur of any layer at its
-        level), made again only when the cell changes or the radius passes a quarter octave."""
+        level), uploaded again only when the cell changes or the radius passes a quarter octave and
+        made once per cell and range (:func:`_norm_tables`)."""
         point, planes = cell.gl()
         if len(planes) > MAX_PLANES:
             raise DofviewError(f"a lens cell of {len(planes)} edges exceeds the sliced mode's {MAX_PLANES}")
@@ -287,7 +301,7 @@ class SlicedDof:
         prog["u_plane"].write(data.tobytes())
         span = max(NORM_FINE, 2.0 ** (math.ceil(4.0 * math.log2(max(radius, NORM_FINE))) / 4.0))
         if self._norms_for != (cell, span):
-            self._norms.write(np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes())
+            self._norms.write(_norm_tables(cell, span))
             self._norms_for = (cell, span)
 
     def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule, veil: bool) -> Box:

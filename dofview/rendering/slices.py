@@ -54,6 +54,7 @@ of a reduced level align at the bottom-left corner as the GL targets do.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -374,13 +375,22 @@ class FramePlan:
         return len(self.layers) == 1 and not self.layers[0].lensed and self.layers[0].radius == 0.0
 
 
+def pinhole_plan(count: int, width: int, height: int) -> FramePlan:
+    """The plan at A = 0, made without looking at a Gaussian: one unblurred layer, the whole draw
+    order of ``count`` Gaussians (those behind the near plane are culled as the pinhole culls them),
+    drawn whole into a frame of ``width`` × ``height``."""
+    return FramePlan([Layer(0, count, False, 0.0, 1)], 0, [(0, 0, width, height)], [(True,) * 4], [False])
+
+
 def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, lens: Lens, near: float,
                rule: SliceRule, size: float = 1.0) -> FramePlan:
     """The sliced mode's plan of a frame of ``scene`` seen by ``camera`` in the draw order ``order``
     (N,) (nearest first), ``largest`` (N,) float32 each Gaussian's largest scale, for a kernel of
     ``size`` (plan_layers). A pinhole frame (:attr:`FramePlan.pinhole`) gets no boxes: it is drawn
-    whole."""
+    whole; at A = 0 no Gaussian is looked at (:func:`pinhole_plan`)."""
     w, h = camera.width, camera.height
+    if lens.aperture == 0.0:
+        return pinhole_plan(len(order), w, h)
     layers = plan_layers(camera_depths(scene.means, camera)[order], lens, near, rule, size, max(w, h))
     whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers), [False] * len(layers))
     if not layers or whole.pinhole:
@@ -428,8 +438,14 @@ class Aperture:
         return np.all(u[..., None, 0] * pl[:, 0] + u[..., None, 1] * pl[:, 1] <= pl[:, 2], axis=-1)
 
     def whole(self) -> "LensCell":
-        """The whole aperture as one cell, seen from its centre: the single pass's kernel."""
-        return LensCell(self.planes(), not self.blades, np.zeros(2), 1.0, 1.0)
+        """The whole aperture as one cell, seen from its centre: the single pass's kernel (one
+        object per aperture, so that what is made for it, such as its N(ρ) tables, is made once)."""
+        return _whole(self)
+
+
+@functools.lru_cache(maxsize=64)
+def _whole(aperture: Aperture) -> "LensCell":
+    return LensCell(aperture.planes(), not aperture.blades, np.zeros(2), 1.0, 1.0)
 
 
 @dataclass(frozen=True, eq=False)
