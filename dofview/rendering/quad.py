@@ -19,7 +19,7 @@ from dofview.camera import Camera
 from dofview.deep import DeepSettings
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.rendering.base import Renderer
+from dofview.rendering.base import DrawOrder, Renderer
 from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
 from dofview.rendering.depth_order import front_to_back, order_key
 from dofview.rendering.gl import compute_shader, load_shader
@@ -76,6 +76,11 @@ class QuadBackend(Renderer):
         """(N,) uint32 the order in the order buffer, nearest first (kept on the CPU, no read-back)."""
         return self._host_order[::-1]
 
+    def draw_order(self, camera: Camera) -> DrawOrder:
+        """The order buffer, farthest first: sorted for ``camera``, or while its background sort
+        runs an earlier view's."""
+        return DrawOrder(self._order, True, order_key(camera) == self._order_key)
+
     def _order_for(self, camera: Camera) -> None:
         if order_key(camera) != self._awaiting:  # that view's order is being sorted in the background
             self.sort(camera)
@@ -131,14 +136,14 @@ class QuadBackend(Renderer):
             self._requested = self._order_key
 
     # ---- drawing -------------------------------------------------------------------------------
-    def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
         p = self.program
         set_projection_uniforms(p, camera, lens, settings)
         p["u_count"].value = count
 
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                     box: tuple[int, int, int, int] | None = None) -> None:
-        self._bind_scene()
+    def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                    box: tuple[int, int, int, int] | None = None) -> None:
+        self.bind_scene()
         self._order.bind_to_storage_buffer(3)
         self._counter.bind_to_storage_buffer(4)
         target.use()
@@ -231,7 +236,7 @@ class ABuffer:
             self._fbo = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer((camera.width, camera.height), 1,
                                                                                        dtype="f1")])
             self._fbo.color_mask = (False, False, False, False)
-        b._bind_scene()
+        b.bind_scene()
         b._order.bind_to_storage_buffer(3)
         b._counter.bind_to_storage_buffer(4)
         self._fbo.use()

@@ -5,7 +5,7 @@ The backend's draw order, nearest first, is cut into contiguous layers by signed
 c = ½·A·(1/z − 1/d_f) px (slices.plan_layers). Every pass works in the frame extended by the
 guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum clamp).
 Front to back, each layer is blended by the backend as a pinhole with the frame's τ
-(:meth:`Renderer._splat_range`, within slices.layer_windows) into one reused slice target, then
+(:meth:`Renderer.splat_range`, within slices.layer_windows) into one reused slice target, then
 
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
    accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
@@ -214,7 +214,7 @@ class SlicedDof:
         if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
             # renderer's targets instead of through a layer target, gather and resolve at full size
-            r._splat(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
+            r.splat_scene(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
             return
         self._set_cell(cell, max((layer.radius / layer.scale for layer in self.layers if not layer.lensed), default=0.0))
         camera = camera.guarded(self.guard)  # every pass below works in the guarded image
@@ -232,11 +232,11 @@ class SlicedDof:
         for layer, box, sides, veil in zip(plan.layers, plan.windows, plan.edges, plan.veils):
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
-                r._prepare(camera, *setup)
+                r.prepare_splats(camera, *setup)
                 prepared = setup
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
-            r._splat_range(layer.first, layer.end, self.slice_fbo, box)
+            r.splat_range(layer.first, layer.end, self.slice_fbo, box)
             for step in (1 << k for k in range(1, layer.scale.bit_length())):
                 self._level(step)  # the levels the layer is averaged through
             level = self._level(layer.scale)
