@@ -24,7 +24,7 @@ from dofview.io.exr import read_exr
 from dofview.lens import Lens, aperture_for_blur
 from dofview.rendering import get_backend
 from dofview.rendering.depth_order import camera_depths
-from dofview.rendering import slices
+from dofview.rendering import layer_plan, slices
 from dofview.rendering.progressive import lens_cells, render_lens_samples
 from dofview.rendering import reference
 from dofview.rendering.reference import render_reference_sliced
@@ -484,6 +484,7 @@ def test_at_aperture_zero_no_gaussian_is_planned(backend, monkeypatch):
         monkeypatch.setattr(slices, "plan_layers", refuse)
         monkeypatch.setattr(slices, "screen_boxes", refuse)
         monkeypatch.setattr(type(r), "front_to_back", refuse)
+        monkeypatch.setattr(layer_plan.GpuLayerPlan, "measure", refuse)
         sliced = r.render(cam, Lens(lens.focus, 0.0), SLICED)
         assert [(l.first, l.end, l.radius) for l in r.sliced_layers] == [(0, scene.count, 0.0)]
     finally:

@@ -2,9 +2,10 @@
 of slices.py.
 
 The backend's draw order, nearest first, is cut into contiguous layers by signed CoC
-c = ½·A·(1/z − 1/d_f) px (slices.plan_layers). Every pass works in the frame extended by the
-guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum clamp).
-Front to back, each layer is blended by the backend as a pinhole with the frame's τ
+c = ½·A·(1/z − 1/d_f) px, planned on the GPU (rendering/layer_plan.py: the twin of
+slices.plan_frame; the CPU reads back O(layers) numbers). Every pass works in the frame extended
+by the guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum
+clamp). Front to back, each layer is blended by the backend as a pinhole with the frame's τ
 (:meth:`Renderer.splat_range`, within slices.layer_windows) into one reused slice target, then
 
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
@@ -48,6 +49,7 @@ from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.gl import compute_shader, float32_uniform, load_shader
+from dofview.rendering.layer_plan import GpuLayerPlan
 from dofview.rendering.slices import (
     NORM_FINE,
     NORM_SAMPLES,
@@ -57,8 +59,8 @@ from dofview.rendering.slices import (
     Layer,
     LensCell,
     SliceRule,
+    frame_plan,
     pinhole_plan,
-    plan_frame,
     rule_for,
 )
 
@@ -141,7 +143,7 @@ class SlicedDof:
         self._levels: dict[int, _Level] = {}
         self._norms = self._texture((NORM_SAMPLES, 4), 1)  # the kernel's N(ρ) tables (LensCell.norms)
         self._norms_for: tuple[LensCell, float] | None = None  # (cell, range) they were made for
-        self._largest = renderer.scene.scales.max(axis=1)  # (N,) float32: screen_boxes, every draw
+        self._planner: GpuLayerPlan | None = None  # made by the first draw with an aperture
         self.layers: list[Layer] = []
         """The layers of the last draw (Renderer.sliced_layers)."""
 
@@ -197,6 +199,11 @@ class SlicedDof:
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
 
+    @property
+    def plan_bytes(self) -> int:
+        """Bytes of the GPU plan's buffers (per Gaussian: layer_plan.GpuLayerPlan)."""
+        return self._planner.gpu_bytes if self._planner is not None else 0
+
     # ---- one frame -----------------------------------------------------------------------------
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
              cell: LensCell | None = None) -> None:
@@ -208,8 +215,9 @@ class SlicedDof:
         if lens.aperture == 0.0:  # nothing to plan: no Gaussian is looked at
             plan = pinhole_plan(r.scene.count, camera.width, camera.height)
         else:
-            plan = plan_frame(r.scene, self._largest, r.front_to_back(), camera, lens, settings.near, rule,
-                              math.sqrt(cell.share))
+            if self._planner is None:
+                self._planner = GpuLayerPlan(r)
+            plan = frame_plan(self._planner.measure(camera, lens, settings, rule), camera, rule, math.sqrt(cell.share))
         self.layers, self.guard = plan.layers, plan.guard
         if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
@@ -430,3 +438,5 @@ class SlicedDof:
         self._occupancy.release()
         self._linear.release()
         self._norms.release()
+        if self._planner is not None:
+            self._planner.release()
