@@ -36,6 +36,9 @@ levels and guard band followed from the lens alone could be drawn without it (do
 
 from __future__ import annotations
 
+import math
+import struct
+
 import moderngl
 import numpy as np
 
@@ -94,24 +97,33 @@ def coc_of_key(key: np.ndarray | int, lens: Lens) -> np.ndarray:
 
 
 def key_threshold(holds) -> int:
-    """The first depth key of a positive depth for which ``holds(key)``, a predicate that once true
-    stays true as the key (the depth) grows; :data:`NO_KEY` if none (glsl/plan_common.glsl:
-    coc_threshold is the GPU's)."""
+    """The first depth key of a positive depth for which ``holds(z)`` (z the key's float32 depth
+    as a Python float, scene units), a predicate that once true stays true as the depth grows;
+    :data:`NO_KEY` if none (glsl/plan_common.glsl: coc_threshold is the GPU's)."""
     lo, hi = 0x80000000, NO_KEY
     while lo < hi:
         mid = (lo + hi) // 2
-        if holds(mid):
+        if holds(_F32.unpack(_U32.pack(mid & 0x7FFFFFFF))[0]):
             hi = mid
         else:
             lo = mid + 1
     return lo
 
 
+_U32, _F32 = struct.Struct("<I"), struct.Struct("<f")
+
+
 def coc_threshold(e: float, lens: Lens, strict: bool = False) -> int:
-    """The first depth key whose c ≤ ``e`` px (c < e when ``strict``)."""
+    """The first depth key whose c ≤ ``e`` px (c < e when ``strict``), c as slices.signed_coc
+    computes it (+inf at depth 0)."""
+    half, inv = 0.5 * lens.aperture, lens.inv_focus
+
+    def coc(z: float) -> float:
+        return half * (1.0 / z - inv) if z > 0.0 else math.inf
+
     if strict:
-        return key_threshold(lambda key: coc_of_key(key, lens) < e)
-    return key_threshold(lambda key: coc_of_key(key, lens) <= e)
+        return key_threshold(lambda z: coc(z) < e)
+    return key_threshold(lambda z: coc(z) <= e)
 
 
 class GpuLayerPlan:
@@ -163,7 +175,7 @@ class GpuLayerPlan:
         values = {
             "u_n": n, "u_back_to_front": order.back_to_front, "u_sorted": order.sorted,
             "u_half_a": 0.5 * lens.aperture, "u_inv_f": lens.inv_focus,
-            "u_key_near": key_threshold(lambda key: depth_of_key(key) > settings.near),
+            "u_key_near": key_threshold(lambda z: z > settings.near),
             "u_key_front": coc_threshold(rule.huge, lens),
             "u_key_back": coc_threshold(-rule.huge, lens, strict=True),
             "u_key_focus": coc_threshold(0.0, lens, strict=True),
