@@ -238,6 +238,13 @@ class SlicedDof:
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
         for layer, box, sides, veil in zip(plan.layers, plan.windows, plan.edges, plan.veils):
+            for step in (1 << k for k in range(1, layer.scale.bit_length())):
+                self._level(step)  # the levels the layer is averaged through
+            level = self._level(layer.scale)
+            if run and run[0] is not level:
+                self._end_run(run)
+            if box[2] <= box[0] or box[3] <= box[1]:
+                continue  # nothing of it within its reach of the frame: it adds nothing (but ends a run)
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
                 r.prepare_splats(camera, *setup)
@@ -245,11 +252,6 @@ class SlicedDof:
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
             r.splat_range(layer.first, layer.end, self.slice_fbo, box)
-            for step in (1 << k for k in range(1, layer.scale.bit_length())):
-                self._level(step)  # the levels the layer is averaged through
-            level = self._level(layer.scale)
-            if run and run[0] is not level:
-                self._end_run(run)
             taps = cell.taps(layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
