@@ -188,3 +188,17 @@ def test_threshold_keys_split_the_depths_where_the_coc_crosses():
         assert coc_of_key(key, lens) <= e < coc_of_key(key - 1, lens)
     key = int(depth_keys(np.array([3.0], np.float32))[0])  # c = 0 exactly at the focus
     assert coc_threshold(0.0, lens) == key and coc_threshold(0.0, lens, strict=True) == key + 1
+
+
+def test_the_planning_benchmark_times_both_plans_and_checks_they_agree(capsys):
+    from dofview.bench.planning import main, tiled
+
+    assert main(["--sizes", "3000", "--reps", "1", "--width", "96", "--height", "54"]) == 0
+    rows = [row.split("\t") for row in capsys.readouterr().out.strip().splitlines()]
+    assert len(rows) == 3 and all(len(row) == 8 and float(row[7]) > 0 for row in rows[1:])  # quad, compute
+    scene = load_scene(DATA / "burger.ply", progress=False)
+    n = scene.count
+    big = tiled(scene, 2 * n + 5)
+    assert big.count == 2 * n + 5 and np.array_equal(big.means[:n], scene.means)
+    np.testing.assert_array_equal(big.means[n:2 * n, 1:], scene.means[:, 1:])
+    assert np.all(big.means[n:2 * n, 0] > scene.means[:, 0])  # the copies side by side
