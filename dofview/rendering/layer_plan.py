@@ -14,16 +14,18 @@ sort's (project.glsl: camera_depth; depth_order.camera_depths is the CPU's twin)
 2. plan_snap.comp, one workgroup per edge, dispatched indirectly (the GPU knows how many): each
    inner edge moved into the widest gap between the CoCs near it (slices.snap_edges; the gaps are
    differences of consecutive sorted keys' CoCs), and each edge's threshold key;
-3. plan_bounds.comp: each slot's first place, a binary search of the keys against its threshold;
-4. plan_stats.comp, one thread per Gaussian of the slices: each slice's smallest and largest live
-   keys on either side of focus (|c| is monotonic in the key there, so the CPU turns them into
-   the slice's CoC range exactly) and its screen box (slices.screen_boxes), reduced per workgroup
-   in shared memory and added to the plan with atomics.
+3. plan_bounds.comp: each slot's first place, a binary search of the keys against its threshold,
+   and each slice's smallest and largest live keys on either side of focus (its ends', and those
+   either side of the focus's threshold: |c| is monotonic in the key there, so the CPU turns them
+   into the slice's CoC range exactly);
+4. plan_stats.comp, one thread per :data:`STATS_ITEMS` places of the slices: each slice's screen
+   box (slices.screen_boxes), reduced per thread, per workgroup in shared memory, and added to the
+   plan with a few atomics.
 
 An order sorted for an earlier view (the quad backend's background sort, while the viewer moves)
 is nearly sorted: plan_extent.comp finds its key range with atomics instead, plan_slots.comp and
 plan_scan.comp give every place the farthest slot of those before it (as slices.measure_layers
-does), and its edges are not snapped.
+does), plan_stats.comp reduces the keys too, and its edges are not snapped.
 
 The CPU then reads back one fixed record of O(MAX_EDGES) numbers (:data:`PLAN_BYTES`: edges,
 slot bounds, keys, boxes) and makes the frame's layers, levels, guard band and windows from it in
@@ -31,7 +33,7 @@ O(layers) (slices.frame_plan), the same code as numpy's plan. What the CPU must 
 learn otherwise: each layer's level (from its smallest and largest CoC, data), the guard band (from
 the boxes: it sizes the targets and the guarded camera) and which layers are empty; a frame whose
 levels and guard band followed from the lens alone could be drawn without it (docs/BENCHMARKS.md,
-"Planning the layers on the GPU").
+"The sliced mode's plan on the GPU").
 """
 
 from __future__ import annotations
@@ -52,8 +54,8 @@ from dofview.rendering.slices import LayerStats, SliceRule
 from dofview.rendering.uniforms import set_projection_uniforms
 
 MAX_EDGES = 256
-"""Most slices a frame's plan holds (the default rule cuts any view into ≤ ~130: growth 1.15 up to
-an eighth of the frame, then threefold)."""
+"""Most slices a frame's plan holds (the default rule: growth 1.15 up to an eighth of the frame, ~40
+slices a side for a 16384 px frame, then threefold steps; fewer than 256 for any CoC a float holds)."""
 STATS_ITEMS = 16
 """Places one thread of glsl/plan_stats.comp reduces (ITEMS there)."""
 NO_KEY = 0xFF800001
@@ -156,6 +158,7 @@ class GpuLayerPlan:
 
     @property
     def gpu_bytes(self) -> int:
+        """Bytes of its buffers as now allocated."""
         own = [self._largest, self._record, *self._maxima] + ([self._running] if self._running is not None else [])
         return sum(b.size for b in own)
 
@@ -195,27 +198,27 @@ class GpuLayerPlan:
         self._record.write(_INITIAL)
 
         def run(name: str, *size: int) -> None:
+            """Kernel ``name`` over ``size`` workgroups (none: as many as the record says, indirectly)."""
             r.bind_scene()
             order.buffer.bind_to_storage_buffer(3)
             self._record.bind_to_storage_buffer(4)
             self._largest.bind_to_storage_buffer(5)
             if self._running is not None:
                 self._running.bind_to_storage_buffer(6)
-            self._kernels[name].run(*size)
+            if size:
+                self._kernels[name].run(*size)
+            else:
+                self._kernels[name].run_indirect(self._record, _SNAP_GROUPS)
             ctx.memory_barrier()
 
         spread = groups(-(-n // 256))
         if not order.sorted:
             run("plan_extent", *spread)
-        run("plan_lattice")
-        r.bind_scene()
-        order.buffer.bind_to_storage_buffer(3)
-        self._record.bind_to_storage_buffer(4)
-        self._kernels["plan_snap"].run_indirect(self._record, _SNAP_GROUPS)
-        ctx.memory_barrier()
+        run("plan_lattice", 1)
+        run("plan_snap")  # one workgroup per edge of the lattice
         if not order.sorted:
             self._running_slots(n, run, spread)
-        run("plan_bounds")
+        run("plan_bounds", 1)
         run("plan_stats", *groups(-(-n // (256 * STATS_ITEMS))))
         self.stats = _decode(self._record.read(), lens)
         return self.stats
