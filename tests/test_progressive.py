@@ -12,6 +12,7 @@ import os
 import shlex
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -200,3 +201,28 @@ def test_viewer_refines_to_render_lens_samples_and_restarts_on_a_move(display, t
     shown, cli = read_png(tmp_path / "still.png"), read_png(tmp_path / "cli.png")
     assert shown.shape == cli.shape
     assert psnr(shown, cli, 255.0) >= 45.0
+
+
+@pytest.mark.parametrize("dof", ["sliced", "splat"])
+def test_lens_shifted_passes_keep_the_depth_order_and_sort_once(dof, monkeypatch):
+    """Camera z depends on R[2] and T[2] only, so every lens-shifted pass of a stage has the order
+    of the unshifted view: the quad backend sorts once for a whole stage (issue 28: once a pass)."""
+    from dofview.rendering import quad
+    from dofview.rendering.depth_order import front_to_back
+
+    scene = random_scene(seed=5, colour_space="srgb")
+    lens = Lens(focus=4.0, aperture=150.0)
+    shifted = CAM.lens_shifted(0.05, -0.03, lens.focus)
+    assert np.array_equal(front_to_back(scene.means, shifted), front_to_back(scene.means, CAM))
+    sorts = []
+    monkeypatch.setattr(quad, "front_to_back", lambda *a: sorts.append(a) or front_to_back(*a))
+    r = QuadBackend(scene)
+    try:
+        render_lens_samples(r, CAM, lens, RenderSettings(dof=dof), 4)
+        assert len(sorts) == 1
+        r.draw(CAM, lens, RenderSettings(dof=dof))  # the unshifted view: the same order
+        assert len(sorts) == 1
+        r.draw(replace(CAM, T=CAM.T + np.array([0.0, 0.0, 0.1])), lens, RenderSettings(dof=dof))  # a dolly: sorted
+        assert len(sorts) == 2
+    finally:
+        r.release()

@@ -25,7 +25,8 @@ from dofview.io.exr import read_exr
 from dofview.lens import Lens, aperture_for_blur
 from dofview.rendering import get_backend
 from dofview.rendering.depth_order import camera_depths
-from dofview.rendering.progressive import lens_cells
+from dofview.rendering import layer_plan, slices
+from dofview.rendering.progressive import lens_cells, render_lens_samples
 from dofview.rendering.reference import render_reference_sliced
 from dofview.rendering.slices import SLICE_RULE
 from dofview.scene import GaussianScene
@@ -216,7 +217,8 @@ def test_floaters_at_the_lens_do_not_fog_the_frame(backend):
             lens = Lens(3.0, 2 * blur / (1 / 1.0 - 1 / 3.0))
             truth = make_references(r, cam, lens, RenderSettings(), 48, False, lambda: None).physical
             sliced = r.render(cam, lens, SLICED)
-            assert max(l.radius for l in r.sliced_layers) > 70.0
+            front = r.sliced_layers[0]
+            assert front.lensed and front.end - front.first >= 27  # the floaters beyond 20 px of CoC, drawn per splat
             assert np.abs(pin.rgba - truth.rgba).max() > 0.3  # (what the test tells apart)
             assert np.abs(sliced.rgba - truth.rgba).max() < 0.04
             assert psnr(sliced.rgba, truth.rgba) >= 40.0
@@ -266,8 +268,6 @@ def test_a_bush_at_the_lens_is_carried_by_the_refinement(backend):
     stage 4 is 28.8 / 25.5 dB (≥ 3 dB over the pinhole and every anchor asserted), and the
     default's single pass is the per-splat image of the leaves (within 0.5 dB of the anchor at
     the default k = 1/4 asserted)."""
-    from dofview.rendering.progressive import render_lens_samples
-
     parts = Parts.empty()
     add_panel(parts, 2, 3.0, {0: (-2.5, 2.5), 1: (-2.0, 2.0)}, (0.8, 0.75, 0.3), spacing=0.05)
     rng = np.random.default_rng(5)
@@ -439,3 +439,57 @@ def test_cli_renders_sliced_and_records_it(tmp_path):
         main(["render", str(CARDS), "--dof", "blur", "-o", str(tmp_path / "x.exr")])
     assert bad.value.code == 2
     assert not (tmp_path / "x.exr").exists()
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_the_kernel_tables_are_made_once_per_aperture_and_lens_cell(backend, monkeypatch):
+    """The N(ρ) tables (LensCell.norms) of an aperture are made by its first sliced frame only, and
+    those of refinement's lens cells by the first stage that uses them (issue 28: every sliced frame
+    made and uploaded them again, for a new LensCell each draw)."""
+    scene = load_scene(CARDS, progress=False)
+    cam, lens = _view(scene, 12.0, 64, 48)
+    made = []
+    norms = slices.LensCell.norms
+    monkeypatch.setattr(slices.LensCell, "norms", lambda cell, *a, **k: made.append(cell) or norms(cell, *a, **k))
+    # apertures no other test draws (the tables are kept for the process: one aperture, one set)
+    settings, other = (RenderSettings(blades=7, blade_rotation=float(backend == "quad") + a) for a in (11.25, 13.5))
+    r = get_backend(backend, scene)
+    try:
+        r.draw(cam, lens, settings)
+        assert len(made) == 2  # the fine table and the frame's range
+        made.clear()
+        r.draw(cam, lens, settings)
+        r.draw(cam, lens, settings)
+        assert not made
+        r.draw(cam, lens, other)  # another aperture: its own tables
+        assert len(made) == 2
+        render_lens_samples(r, cam, lens, settings, 3)
+        assert len(made) > 2
+        made.clear()
+        render_lens_samples(r, cam, lens, settings, 3)
+        assert not made
+    finally:
+        r.release()
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_at_aperture_zero_no_gaussian_is_planned(backend, monkeypatch):
+    """A = 0 is the pinhole frame: the plan looks at no Gaussian (issue 28: it planned every one)."""
+    scene = load_scene(CARDS, progress=False)
+    cam, lens = _view(scene, 12.0, 64, 48)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a Gaussian was planned at A = 0")
+
+    r = get_backend(backend, scene)
+    try:
+        pin = r.render(cam, Lens(lens.focus, 0.0), RenderSettings(dof="splat"))
+        monkeypatch.setattr(slices, "plan_layers", refuse)
+        monkeypatch.setattr(slices, "screen_boxes", refuse)
+        monkeypatch.setattr(type(r), "front_to_back", refuse)
+        monkeypatch.setattr(layer_plan.GpuLayerPlan, "measure", refuse)
+        sliced = r.render(cam, Lens(lens.focus, 0.0), SLICED)
+        assert [(l.first, l.end, l.radius) for l in r.sliced_layers] == [(0, scene.count, 0.0)]
+    finally:
+        r.release()
+    assert psnr(sliced.rgba, pin.rgba) >= 60.0

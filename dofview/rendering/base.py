@@ -3,15 +3,21 @@ buffers, the float targets a frame is drawn into, the read-back and the display 
 
 :meth:`Renderer.draw` is one template for every backend: size the targets, bring the draw order
 up to date (:meth:`Renderer.sort`, each backend its own way), set camera and lens, run the
-backend's splatting step (:meth:`Renderer._splat`: :meth:`~Renderer._prepare`, then
-:meth:`~Renderer._splat_range` over the whole order; ``RenderSettings.dof == "sliced"`` instead
+backend's splatting step (:meth:`Renderer.splat_scene`: :meth:`~Renderer.prepare_splats`, then
+:meth:`~Renderer.splat_range` over the whole order; ``RenderSettings.dof == "sliced"`` instead
 blends contiguous ranges of that order as depth slices, rendering/sliced.py), record whether the
 targets hold display-encoded colour (:attr:`Renderer.targets_encoded`) and the counters
 (:attr:`Renderer.stats`). A backend implements :meth:`~Renderer.require` (probed before the scene is
-uploaded), :meth:`~Renderer.sort`, :meth:`~Renderer.front_to_back`, :meth:`~Renderer._prepare`
-and :meth:`~Renderer._splat_range`; the viewer, the CLI, the benchmark, progressive refinement and the
-tests use only the public methods here, so any backend serves all of them. Backends are named in one
-place, :data:`dofview.rendering.BACKENDS`.
+uploaded), :meth:`~Renderer.sort`, :meth:`~Renderer.front_to_back`, :meth:`~Renderer.draw_order`,
+:meth:`~Renderer.prepare_splats` and :meth:`~Renderer.splat_range`; the viewer, the CLI, the
+benchmark, progressive refinement, the sliced mode and the tests use only the public methods here,
+so any backend serves all of them. Backends are named in one place, :data:`dofview.rendering.BACKENDS`.
+
+The layer-drawing steps (what the sliced mode draws a frame with): :meth:`Renderer.prepare_splats`
+sets up a camera, lens and settings, :meth:`Renderer.splat_range` blends a contiguous range of the
+draw order into a target within a box, :meth:`Renderer.splat_scene` draws the whole order into the
+renderer's targets, and :meth:`Renderer.draw_order` hands GPU kernels the order where the backend
+keeps it, with :meth:`Renderer.bind_scene` binding the scene's storage buffers for them.
 """
 
 from __future__ import annotations
@@ -37,6 +43,24 @@ from dofview.tonemap import Tonemap, decode
 from dofview.tonemap.stats import Stats
 
 UPLOAD_CHUNK = 1 << 16  # Gaussians packed and uploaded per step; even, so packed SH halves stay word-aligned
+
+
+@dataclass(frozen=True)
+class DrawOrder:
+    """The draw order on the GPU (:meth:`Renderer.draw_order`).
+
+    Attributes:
+        buffer: (N,) uint32 scene indices, a storage buffer.
+        back_to_front: it holds the farthest first (the quad backend blends in that order); else
+            the nearest first.
+        sorted: it is sorted for the depths of the camera asked about (depth_order.order_key);
+            else it is an earlier view's (the quad backend's background sort is still running),
+            and nearly sorted.
+    """
+
+    buffer: moderngl.Buffer
+    back_to_front: bool
+    sorted: bool
 
 
 @dataclass
@@ -76,7 +100,7 @@ class Renderer(ABC):
         self._encoded = self.encoded_scene
         self.stats = DrawStats(total=scene.count)
         self._counter = self.ctx.buffer(reserve=4)  # Gaussians drawn, counted by the splatting step
-        self._view_key: bytes | None = None  # the view the current draw order was sorted for
+        self._order_key: bytes | None = None  # depth_order.order_key of the view the draw order was sorted for
         self.packed = packed
         self.colour_scale = colour_scale(scene) if packed else 1.0
         self._buffers = self._upload(scene, packed, self.colour_scale)
@@ -170,7 +194,7 @@ class Renderer(ABC):
             b.release()
         self._buffers, self.scene = buffers, scene
         self.stats.total = scene.count
-        self._view_key = None
+        self._order_key = None
         if self._sliced is not None:  # it keeps per-Gaussian data of the scene it was made for
             self._sliced.release()
             self._sliced = None
@@ -181,15 +205,18 @@ class Renderer(ABC):
         per-Gaussian buffers for :attr:`scene`, drop what it held of the old scene's order, and
         take ``order`` (camera, front-to-back order) as the order of that camera's view if given."""
 
-    def _bind_scene(self) -> None:
-        """Bind the scene's storage buffers at the bindings the fetch_*.glsl files read."""
+    def bind_scene(self) -> None:
+        """Bind the scene's storage buffers at the bindings the fetch_*.glsl files read (0 and 2),
+        for a kernel that reads the Gaussians (the backends' own, the sliced mode's plan)."""
         for binding, buf in self._buffers.items():
             buf.bind_to_storage_buffer(binding)
 
     @property
     def gpu_bytes(self) -> int:
-        """Bytes of per-Gaussian GPU storage (the scene's buffers; backends add their own)."""
-        return sum(b.size for b in self._buffers.values())
+        """Bytes of per-Gaussian GPU storage (the scene's buffers and the sliced mode's plan once it
+        planned a frame; backends add their own)."""
+        plan = self._sliced.plan_bytes if self._sliced is not None else 0
+        return sum(b.size for b in self._buffers.values()) + plan
 
     @property
     def bytes_per_gaussian(self) -> float:
@@ -233,30 +260,39 @@ class Renderer(ABC):
         else:
             if cell is not None:
                 raise ValueError("the per-splat mode blurs with no lens cell")
-            self._splat(camera, lens, settings, count)
+            self.splat_scene(camera, lens, settings, count)
         self._encoded = self.encoded_scene and not settings.blend_linear
         if count:
             self.stats.drawn = int(np.frombuffer(self._counter.read(), np.uint32)[0])
 
-    def _splat(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+    # ---- the layer-drawing steps (public: the sliced mode draws its layers with them) -----------
+    def splat_scene(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
         """The splatting step: the whole scene, in the current order, into :attr:`fbo`'s targets
-        (sized for ``camera``); ``count``: add the Gaussians drawn to the zeroed ``_counter``."""
-        self._prepare(camera, lens, settings, count)
+        (sized for ``camera``: :meth:`draw` sizes them); ``count``: add the Gaussians drawn to the
+        counter :meth:`draw` zeroed and reads into ``stats.drawn``."""
+        self.prepare_splats(camera, lens, settings, count)
         self.fbo.clear(0.0, 0.0, 0.0, 0.0)
-        self._splat_range(0, self.scene.count, self.fbo)
+        self.splat_range(0, self.scene.count, self.fbo)
 
     @abstractmethod
-    def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
-        """Set up splatting with ``camera``, ``lens`` and ``settings`` for the :meth:`_splat_range`
-        calls that follow (``count``: they add the Gaussians drawn to ``_counter``)."""
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
+        """Set up splatting with ``camera`` (whose size is the targets' that follow), ``lens`` and
+        ``settings`` for the :meth:`splat_range` calls that follow (``count``: they add the
+        Gaussians drawn to the draw counter, see :meth:`splat_scene`)."""
 
     @abstractmethod
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                     box: tuple[int, int, int, int] | None = None) -> None:
-        """Blend Gaussians [first, end) of the front-to-back order, as :meth:`_prepare` set up, into
-        ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized), whose pixels
-        the caller cleared. ``box``: (x0, y0, x1, y1) image pixels (rows from the top, ends
+    def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                    box: tuple[int, int, int, int] | None = None) -> None:
+        """Blend Gaussians [first, end) of the front-to-back order, as :meth:`prepare_splats` set up,
+        into ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized), whose
+        pixels the caller cleared. ``box``: (x0, y0, x1, y1) image pixels (rows from the top, ends
         exclusive) outside which the range writes nothing (None: anywhere)."""
+
+    @abstractmethod
+    def draw_order(self, camera: Camera) -> DrawOrder:
+        """The current draw order where the backend keeps it on the GPU, for kernels that read it
+        (the sliced mode's plan, rendering/layer_plan.py), and whether it is sorted for ``camera``'s
+        depths."""
 
     @abstractmethod
     def front_to_back(self) -> np.ndarray:
@@ -268,7 +304,7 @@ class Renderer(ABC):
 
     def forget_order(self) -> None:
         """Drop the draw order, so that the next draw sorts afresh (a benchmark times that sort)."""
-        self._view_key = None
+        self._order_key = None
 
     def _order_for(self, camera: Camera) -> None:
         """The order step of :meth:`draw` (backends that sort in the background override it)."""

@@ -22,8 +22,9 @@ from dofview.errors import BackendUnavailable, DofviewError
 from dofview.deep import DeepSettings
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.rendering.base import Renderer
+from dofview.rendering.base import DrawOrder, Renderer
 from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
+from dofview.rendering.depth_order import order_key
 from dofview.rendering.gl import compute_shader
 from dofview.rendering.gpu_sort import (
     GpuRadixSort,
@@ -119,7 +120,7 @@ class ComputeBackend(Renderer):
         self._tiles = (0, 0)  # tiles across and down of the image being drawn
         self._image = (0, 0)  # its size (a guarded image's in the sliced mode)
         self._tau = 0.0
-        self._binned = False  # the pairs of the last _prepare are made and sorted (one buffer holds them)
+        self._binned = False  # the pairs of the last prepare_splats are made and sorted (one buffer holds them)
         self._vals: moderngl.Buffer | None = None  # the sorted pairs' ranks
         self._passes: tuple[int, int] | None = None  # (splats a blend pass takes, the longest tile) where loops are limited
         self._deep_prog: moderngl.ComputeShader | None = None  # the deep walk, compiled by the first deep image
@@ -135,12 +136,13 @@ class ComputeBackend(Renderer):
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
-        """Sort all Gaussians front to back on the GPU if the view moved (nothing is read back)."""
-        key = camera.view_key()
-        if key == self._view_key or not self.scene.count:
+        """Sort all Gaussians front to back on the GPU if their depths changed (depth_order.order_key;
+        nothing is read back)."""
+        key = order_key(camera)
+        if key == self._order_key or not self.scene.count:
             return
         n = self.scene.count
-        self._bind_scene()
+        self.bind_scene()
         set_projection_uniforms(self._keys_prog, camera, Lens(), RenderSettings())
         self._keys_prog["u_n"].value = n
         self._depth_keys.bind_to_storage_buffer(3)
@@ -150,14 +152,18 @@ class ComputeBackend(Renderer):
         scratch = self._pair_buffers(n)[2:]
         out = self.sorter.sort(self._depth_keys, self._order, n, 32, *scratch)
         assert out[1] is self._order  # four passes: the result is back in the input pair
-        self._view_key = key
+        self._order_key = key
 
     def front_to_back(self) -> np.ndarray:
-        """(N,) uint32 the current depth order, read back (the sliced mode cuts it into layers each
-        draw; the per-splat mode never reads it)."""
+        """(N,) uint32 the current depth order, read back (neither mode reads it: the sliced mode
+        plans its layers on the GPU, :meth:`draw_order`)."""
         if not self.scene.count:  # GL maps no zero-sized range
             return np.zeros(0, np.uint32)
         return np.frombuffer(self._order.read(size=4 * self.scene.count), np.uint32).copy()
+
+    def draw_order(self, camera: Camera) -> DrawOrder:
+        """The order buffer, nearest first, sorted for ``camera`` once :meth:`sort` ran for it."""
+        return DrawOrder(self._order, False, order_key(camera) == self._order_key)
 
     # ---- buffers -------------------------------------------------------------------------------
     def _per_gaussian_buffers(self, n: int) -> None:
@@ -183,7 +189,7 @@ class ComputeBackend(Renderer):
         if order is not None and self.scene.count:
             camera, ftb = order
             self._order.write(np.ascontiguousarray(ftb, dtype=np.uint32))
-            self._view_key = camera.view_key()
+            self._order_key = order_key(camera)
 
     def _pair_buffers(self, pairs: int) -> list[moderngl.Buffer]:
         """Tile keys, values and sort scratch for ``pairs`` pairs (grown by half again, never past
@@ -197,9 +203,9 @@ class ComputeBackend(Renderer):
         return self._pairs
 
     # ---- drawing -------------------------------------------------------------------------------
-    def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
         """Preprocess and scan the tile counts of all Gaussians (no read-back but the pair totals);
-        the pairs are made and sorted by the first :meth:`_splat_range` that follows."""
+        the pairs are made and sorted by the first :meth:`splat_range` that follows."""
         self._tiles = (-(-camera.width // self.tile), -(-camera.height // self.tile))
         self._image = (camera.width, camera.height)
         self._tau = settings.tau
@@ -210,13 +216,13 @@ class ComputeBackend(Renderer):
             self.pairs = self._scan_counts(self.scene.count)
         self._ranges_for(self._tiles)
 
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                     box: tuple[int, int, int, int] | None = None) -> None:
+    def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                    box: tuple[int, int, int, int] | None = None) -> None:
         """Rasterise Gaussians [first, end) of the depth order into ``target``'s textures, writing
         the pixels of ``box`` (image pixels (x0, y0, x1, y1), rows from the top; None: the image).
-        When all pairs fit one buffer they are made and sorted once per
-        :meth:`_prepare` and every range blends its part of each tile's list; otherwise the range
-        is drawn in depth slices, each binned on its own (its pair offsets come back: 8 bytes)."""
+        When all pairs fit one buffer they are made and sorted once per :meth:`prepare_splats` and
+        every range blends its part of each tile's list; otherwise the range is drawn in depth
+        slices, each binned on its own (its pair offsets come back: 8 bytes)."""
         width, height = self._image
         x0, y0, x1, y1 = box or (0, 0, width, height)
         pixels = (x0, height - y1, x1, height - y0)  # GL rows
@@ -254,7 +260,7 @@ class ComputeBackend(Renderer):
         p["u_n"].value = self.scene.count
         p["u_count"].value = count
         p["u_tiles"].value = tiles
-        self._bind_scene()
+        self.bind_scene()
         self._splats.bind_to_storage_buffer(3)
         self._rects.bind_to_storage_buffer(4)
         self._counter.bind_to_storage_buffer(5)
@@ -381,7 +387,7 @@ class ComputeBackend(Renderer):
         if self._deep_prog is None:
             self._deep_prog = compute_shader(self.ctx, "deep_tiles.comp", {"TILE": self.tile})
             self._deep_walk = DeepWalk(self.ctx)
-        self._prepare(camera, lens, settings, False)
+        self.prepare_splats(camera, lens, settings, False)
         slices = self._slices(0, self.scene.count, 0, self.pairs) if self.pairs else [(0, 0, 0, 0)]
         prog, walker, take = self._deep_prog, self._deep_walk, walk_take(self.ctx)
         prog["u_tau"].value = settings.tau

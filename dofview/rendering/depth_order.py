@@ -13,9 +13,20 @@ from dofview.camera import Camera
 
 
 def camera_depths(means: np.ndarray, camera: Camera) -> np.ndarray:
-    """(N, 3) float32 world means → (N,) float32 camera z, scene units."""
+    """(N, 3) float32 world means → (N,) float32 camera z, scene units: ((r₀x + r₁y) + r₂z) + t,
+    each step rounded to float32 as project.glsl's camera_depth computes it (``precise``), so that
+    an order sorted here is sorted by the GPU's depth keys too (the GPU plans its layers:
+    rendering/layer_plan.py)."""
+    means = np.asarray(means, np.float32)
     r = camera.R[2].astype(np.float32)
-    return means @ r + np.float32(camera.T[2])
+    return (means[:, 0] * r[0] + means[:, 1] * r[1]) + means[:, 2] * r[2] + np.float32(camera.T[2])
+
+
+def order_key(camera: Camera) -> bytes:
+    """Bytes that change exactly when the depth order of the scene can change: camera z depends on
+    R[2] and T[2] only, so a lens-shifted camera (progressive refinement's passes) or a roll about
+    the optical axis keeps the order (Camera.view_key also changes with those)."""
+    return np.concatenate([camera.R[2], camera.T[2:]]).tobytes()
 
 
 def depth_keys(z: np.ndarray) -> np.ndarray:

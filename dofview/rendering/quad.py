@@ -19,9 +19,9 @@ from dofview.camera import Camera
 from dofview.deep import DeepSettings
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
-from dofview.rendering.base import Renderer
+from dofview.rendering.base import DrawOrder, Renderer
 from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
-from dofview.rendering.depth_order import front_to_back
+from dofview.rendering.depth_order import front_to_back, order_key
 from dofview.rendering.gl import compute_shader, load_shader
 from dofview.rendering.gpu_sort import GpuRadixSort, groups
 from dofview.rendering.sort_thread import SortThread
@@ -44,8 +44,8 @@ class QuadBackend(Renderer):
         self._vao = self.ctx.vertex_array(self.program, [])
         self._host_order = np.zeros(0, np.uint32)  # back to front, as uploaded
         self._thread: SortThread | None = None  # started by the first request_order
-        self._requested: bytes | None = None  # the view request_order was last asked for
-        self._awaiting: bytes | None = None  # the view whose background order is not in yet
+        self._requested: bytes | None = None  # the order key request_order was last asked for
+        self._awaiting: bytes | None = None  # the order key whose background order is not in yet
         self._abuffer: ABuffer | None = None  # the deep image's fragment lists, made by the first deep image
 
     @property
@@ -56,28 +56,33 @@ class QuadBackend(Renderer):
 
     # ---- depth order ---------------------------------------------------------------------------
     def sort(self, camera: Camera) -> None:
-        """Sort on this thread and upload the back-to-front order for ``camera`` if its view differs
-        from the last one sorted."""
-        key = camera.view_key()
-        if key == self._view_key:
+        """Sort on this thread and upload the back-to-front order for ``camera`` if its depths differ
+        from those of the last view sorted (depth_order.order_key: a lens-shifted pass keeps them)."""
+        key = order_key(camera)
+        if key == self._order_key:
             return
         t0 = time.perf_counter()
         order = front_to_back(self.scene.means, camera)[::-1]
         self.stats.sort_ms = (time.perf_counter() - t0) * 1e3
         self._upload_order(order, key)
 
-    def _upload_order(self, back_to_front: np.ndarray, view_key: bytes) -> None:
+    def _upload_order(self, back_to_front: np.ndarray, key: bytes) -> None:
         self._host_order = np.ascontiguousarray(back_to_front, dtype=np.uint32)
         if back_to_front.size:
             self._order.write(self._host_order.tobytes())
-        self._view_key = view_key
+        self._order_key = key
 
     def front_to_back(self) -> np.ndarray:
         """(N,) uint32 the order in the order buffer, nearest first (kept on the CPU, no read-back)."""
         return self._host_order[::-1]
 
+    def draw_order(self, camera: Camera) -> DrawOrder:
+        """The order buffer, farthest first: sorted for ``camera``, or while its background sort
+        runs an earlier view's."""
+        return DrawOrder(self._order, True, order_key(camera) == self._order_key)
+
     def _order_for(self, camera: Camera) -> None:
-        if camera.view_key() != self._awaiting:  # that view's order is being sorted in the background
+        if order_key(camera) != self._awaiting:  # that view's order is being sorted in the background
             self.sort(camera)
 
     def request_order(self, camera: Camera) -> bool:
@@ -85,7 +90,7 @@ class QuadBackend(Renderer):
         is not the view asked for last (the first request sorts here: there is no order to draw
         with yet). Draws of the requested view meanwhile use the last order; draws of other views
         (lens-shifted passes, other cameras) sort here as before."""
-        key = camera.view_key()
+        key = order_key(camera)
         if self._requested is None:
             self.sort(camera)
             self._requested = key
@@ -103,9 +108,9 @@ class QuadBackend(Renderer):
         res = self._thread.result() if self._thread is not None else None
         if res is None:
             return False
-        self._upload_order(res.order, res.view_key)
+        self._upload_order(res.order, res.order_key)
         self.stats.sort_ms = res.ms
-        if res.view_key == self._awaiting:
+        if res.order_key == self._awaiting:
             self._awaiting = None
         return True
 
@@ -127,18 +132,18 @@ class QuadBackend(Renderer):
         self._requested = self._awaiting = None
         if order is not None:
             camera, ftb = order
-            self._upload_order(ftb[::-1], camera.view_key())
-            self._requested = self._view_key
+            self._upload_order(ftb[::-1], order_key(camera))
+            self._requested = self._order_key
 
     # ---- drawing -------------------------------------------------------------------------------
-    def _prepare(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool) -> None:
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
         p = self.program
         set_projection_uniforms(p, camera, lens, settings)
         p["u_count"].value = count
 
-    def _splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                     box: tuple[int, int, int, int] | None = None) -> None:
-        self._bind_scene()
+    def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
+                    box: tuple[int, int, int, int] | None = None) -> None:
+        self.bind_scene()
         self._order.bind_to_storage_buffer(3)
         self._counter.bind_to_storage_buffer(4)
         target.use()
@@ -231,7 +236,7 @@ class ABuffer:
             self._fbo = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer((camera.width, camera.height), 1,
                                                                                        dtype="f1")])
             self._fbo.color_mask = (False, False, False, False)
-        b._bind_scene()
+        b.bind_scene()
         b._order.bind_to_storage_buffer(3)
         b._counter.bind_to_storage_buffer(4)
         self._fbo.use()

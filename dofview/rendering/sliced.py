@@ -2,10 +2,11 @@
 of slices.py.
 
 The backend's draw order, nearest first, is cut into contiguous layers by signed CoC
-c = ½·A·(1/z − 1/d_f) px (slices.plan_layers). Every pass works in the frame extended by the
-guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum clamp).
-Front to back, each layer is blended by the backend as a pinhole with the frame's τ
-(:meth:`Renderer._splat_range`, within slices.layer_windows) into one reused slice target, then
+c = ½·A·(1/z − 1/d_f) px, planned on the GPU (rendering/layer_plan.py: the twin of
+slices.plan_frame; the CPU reads back O(layers) numbers). Every pass works in the frame extended
+by the guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum
+clamp). Front to back, each layer is blended by the backend as a pinhole with the frame's τ
+(:meth:`Renderer.splat_range`, within slices.layer_windows) into one reused slice target, then
 
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
    accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
@@ -37,6 +38,7 @@ megapixel of frame measured at 640×360).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -48,6 +50,7 @@ from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.gl import compute_shader, float32_uniform, load_shader
+from dofview.rendering.layer_plan import GpuLayerPlan
 from dofview.rendering.slices import (
     NORM_FINE,
     NORM_SAMPLES,
@@ -57,7 +60,8 @@ from dofview.rendering.slices import (
     Layer,
     LensCell,
     SliceRule,
-    plan_frame,
+    frame_plan,
+    pinhole_plan,
     rule_for,
 )
 
@@ -66,6 +70,14 @@ MAX_TAPS = 256
 largest radius at a level is the rule's limit + 2, 8 with blades)."""
 MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
+
+
+@functools.lru_cache(maxsize=512)  # 32 KB each: a refinement stage of 256 lens cells at two ranges
+def _norm_tables(cell: LensCell, span: float) -> bytes:
+    """The N(ρ) tables slice_prepare.frag reads for ``cell`` (its fine one, and one over [0, ``span``]),
+    made once per cell and range: the whole aperture's cell is one object per aperture
+    (Aperture.whole) and refinement's cells one per stage (progressive.lens_cells)."""
+    return np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes()
 
 
 def _intersect(a: Box, b: Box) -> Box:
@@ -132,7 +144,7 @@ class SlicedDof:
         self._levels: dict[int, _Level] = {}
         self._norms = self._texture((NORM_SAMPLES, 4), 1)  # the kernel's N(ρ) tables (LensCell.norms)
         self._norms_for: tuple[LensCell, float] | None = None  # (cell, range) they were made for
-        self._largest = renderer.scene.scales.max(axis=1)  # (N,) float32: screen_boxes, every draw
+        self._planner: GpuLayerPlan | None = None  # made by the first draw with an aperture
         self.layers: list[Layer] = []
         """The layers of the last draw (Renderer.sliced_layers)."""
 
@@ -188,6 +200,11 @@ class SlicedDof:
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
 
+    @property
+    def plan_bytes(self) -> int:
+        """Bytes of the GPU plan's buffers (per Gaussian: layer_plan.GpuLayerPlan)."""
+        return self._planner.gpu_bytes if self._planner is not None else 0
+
     # ---- one frame -----------------------------------------------------------------------------
     def draw(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
              cell: LensCell | None = None) -> None:
@@ -196,13 +213,18 @@ class SlicedDof:
         r = self.r
         rule = r.slice_rule or rule_for(settings.blades)
         cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-        plan = plan_frame(r.scene, self._largest, r.front_to_back(), camera, lens, settings.near, rule,
-                          math.sqrt(cell.share))
+        if lens.aperture == 0.0:  # nothing to plan: no Gaussian is looked at
+            plan = pinhole_plan(r.scene.count, camera.width, camera.height)
+        else:
+            if self._planner is None:
+                self._planner = GpuLayerPlan(r)
+            size = math.sqrt(cell.share)
+            plan = frame_plan(self._planner.measure(camera, lens, settings, rule, size), camera, rule, size)
         self.layers, self.guard = plan.layers, plan.guard
         if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
             # renderer's targets instead of through a layer target, gather and resolve at full size
-            r._splat(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
+            r.splat_scene(camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
             return
         self._set_cell(cell, max((layer.radius / layer.scale for layer in self.layers if not layer.lensed), default=0.0))
         camera = camera.guarded(self.guard)  # every pass below works in the guarded image
@@ -222,19 +244,21 @@ class SlicedDof:
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
         for layer, box, sides in zip(plan.layers, plan.windows, plan.edges):
-            setup = lensed if layer.lensed else pinhole
-            if setup is not prepared:
-                r._prepare(camera, *setup)
-                prepared = setup
-            s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
-            gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
-            r._splat_range(layer.first, layer.end, self.slice_fbo, box)
             for step in (1 << k for k in range(1, layer.scale.bit_length())):
                 self._level(step)  # the levels the layer is averaged through
             level = self._level(layer.scale)
             if run and run[0] is not level:
                 self._end_run(run)
-            taps = cell.taps(0.0 if layer.lensed else layer.radius / layer.scale)
+            if box[2] <= box[0] or box[3] <= box[1]:
+                continue  # nothing of it within its reach of the frame: it adds nothing (but ends a run)
+            setup = lensed if layer.lensed else pinhole
+            if setup is not prepared:
+                r.prepare_splats(camera, *setup)
+                prepared = setup
+            s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
+            gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
+            r.splat_range(layer.first, layer.end, self.slice_fbo, box)
+            taps = cell.taps(layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
@@ -279,7 +303,8 @@ class SlicedDof:
     def _set_cell(self, cell: LensCell, radius: float) -> None:
         """Set the gather's kernel (slice_kernel.glsl), and the tables of its N(ρ) that the prepare
         reads (LensCell.norms) for |ρ| ≤ ``radius`` (level px: the largest blur of any layer at its
-        level), made again only when the cell changes or the radius passes a quarter octave."""
+        level), uploaded again only when the cell changes or the radius passes a quarter octave and
+        made once per cell and range (:func:`_norm_tables`)."""
         point, planes = cell.gl()
         if len(planes) > MAX_PLANES:
             raise DofviewError(f"a lens cell of {len(planes)} edges exceeds the sliced mode's {MAX_PLANES}")
@@ -292,7 +317,7 @@ class SlicedDof:
         prog["u_plane"].write(data.tobytes())
         span = max(NORM_FINE, 2.0 ** (math.ceil(4.0 * math.log2(max(radius, NORM_FINE))) / 4.0))
         if self._norms_for != (cell, span):
-            self._norms.write(np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes())
+            self._norms.write(_norm_tables(cell, span))
             self._norms_for = (cell, span)
 
     def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule) -> Box:
@@ -328,7 +353,7 @@ class SlicedDof:
                    {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
-                    "u_rmax": 0.0 if layer.lensed else layer.radius / s},
+                    "u_rmax": layer.radius / s},
                    [colour, depth, self._norms], region)
         if s == 1:
             self._clear(self.slice_fbo, box)
@@ -419,3 +444,5 @@ class SlicedDof:
         self._occupancy.release()
         self._linear.release()
         self._norms.release()
+        if self._planner is not None:
+            self._planner.release()

@@ -59,6 +59,7 @@ of a reduced level align at the bottom-left corner as the GL targets do.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -201,22 +202,59 @@ class Layer:
     scale: int
 
 
-def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = SliceRule(),
-                size: float = 1.0, frame: float = math.inf) -> list[Layer]:
-    """The non-empty layers, front to back, of Gaussians at camera depths ``depth`` (N,) scene
-    units in draw order, nearest first; those at z ≤ ``near`` (culled) join the layer before them.
-    ``size``: the kernel's scale against the whole aperture's (√share of a lens cell: its
-    equal-area disk), which sets each layer's resolution: a small cell's shape needs a finer level.
-    ``frame``: the frame's larger side in px of the kernel's blur (px / ``size``), which
-    SliceRule.huge is a fraction of.
-    An order sorted for an earlier view (the viewer's background sort) is nearly sorted: each
-    Gaussian takes the farthest layer of those before it, so the ranges stay contiguous."""
+@dataclass(frozen=True)
+class LayerStats:
+    """What a frame's plan measures of its Gaussians, the GPU (rendering/layer_plan.py) and numpy
+    (:func:`measure_layers`) alike; the layers, their levels and the guard band follow from it in
+    O(layers) (:func:`layers_of`, :func:`frame_plan`).
+
+    Slots v = −1 … K + 1 of the draw order: −1 the huge-CoC front layer, 0 … K − 1 the slices
+    (edges[v] ≥ c > edges[v + 1]), K the huge-CoC back layer, K + 1 nothing (the end).
+
+    Attributes:
+        edges: (K + 1,) float64 the slices' edges, signed CoC px, descending (:func:`slice_edges`
+            over the live Gaussians' range, then :func:`snap_edges`).
+        bounds: (K + 3,) int64 slot v's first place in the draw order at bounds[v + 1]; slot v is
+            [bounds[v + 1], bounds[v + 2]), and the places before bounds[0] are culled (z ≤ near).
+        lo, hi: (K,) float64 per slice the smallest and largest |c| px of its live Gaussians (NaN
+            in an empty slice).
+        boxes: (K, 4) int64 per slice its screen box (:func:`screen_boxes`; an empty slice's holds
+            :data:`NO_BOX`), or None where the plan has no camera (:func:`plan_layers`).
+    """
+
+    edges: np.ndarray
+    bounds: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    boxes: np.ndarray | None = None
+
+    @property
+    def k(self) -> int:
+        """K, the slices (0, with no edges and no slots, when no Gaussian lies beyond the near plane)."""
+        return max(len(self.edges) - 1, 0)
+
+
+NO_BOX = (2**31 - 1, 2**31 - 1, -2**31, -2**31)
+"""The box of an empty slice (what min/max over no Gaussian leave)."""
+
+
+def measure_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = SliceRule(),
+                   frame: float = math.inf, current: bool = True) -> LayerStats:
+    """The slots and CoC ranges (:class:`LayerStats`, without boxes) of Gaussians at camera depths
+    ``depth`` (N,) float32 scene units in draw order, nearest first; those at z ≤ ``near`` (culled)
+    join the layer before them. ``frame``: the frame's larger side in px of the kernel's blur
+    (px / the kernel's size, :func:`layers_of`), which SliceRule.huge is a fraction of. ``current``: the order is sorted for these depths; else it was sorted for an
+    earlier view (the viewer's background sort), is nearly sorted, and each Gaussian takes the
+    farthest layer of those before it, so the ranges stay contiguous; its edges stay on the
+    lattice (:func:`snap_edges` needs the depths sorted)."""
     depth = np.asarray(depth, np.float64)
     live = depth > near
     if not live.any():
-        return []
+        return LayerStats(np.zeros(0), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
     c = signed_coc(depth[live], lens)
-    edges = snap_edges(slice_edges(float(c.min()), float(c.max()), rule, frame), c, rule.snap)
+    edges = slice_edges(float(c.min()), float(c.max()), rule, frame)
+    if current:
+        edges = snap_edges(edges, c, rule.snap)
     k = len(edges) - 1
     # descending edges: count the edges strictly above c (np.searchsorted wants ascending)
     index = np.clip(k - np.searchsorted(edges[::-1], c, side="left"), 0, k - 1)
@@ -228,16 +266,28 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
     bounds = np.searchsorted(key, np.arange(-1, k + 2), side="left")
     coc = np.full(len(depth), np.nan)  # culled: in no layer's range of blur
     coc[live] = np.abs(c)
+    lo, hi = np.full(k, np.nan), np.full(k, np.nan)
+    for v in range(k):
+        part = coc[bounds[v + 1]:bounds[v + 2]]
+        if part.size:  # (its first Gaussian is live: it raised the running slot)
+            lo[v], hi[v] = np.nanmin(part), np.nanmax(part)
+    return LayerStats(edges, bounds.astype(np.int64), lo, hi)
+
+
+def layers_of(stats: LayerStats, rule: SliceRule, size: float = 1.0) -> list[Layer]:
+    """The non-empty layers of ``stats``, front to back. ``size``: the kernel's scale against the
+    whole aperture's (√share of a lens cell: its equal-area disk), which sets each layer's
+    resolution: a small cell's shape needs a finer level."""
+    k, bounds = stats.k, stats.bounds
     layers = []
-    for v in range(-1, k + 1):
+    for v in range(-1, k + 1) if len(bounds) else ():
         first, end = int(bounds[v + 1]), int(bounds[v + 2])
         if end <= first:
             continue
         if v in (-1, k):
-            layers.append(Layer(first, end, True, math.inf, 1))
+            layers.append(Layer(first, end, True, 0.0, 1))
             continue
-        part = coc[first:end]
-        lo, hi = float(np.nanmin(part)), float(np.nanmax(part))
+        lo, hi = float(stats.lo[v]), float(stats.hi[v])
         # the level by the layer's *smallest* blur: where a surface runs from one layer into the
         # next, both blur it alike only if the farther layer's level still resolves its nearest
         # pixels (by the largest, a floor shows a band at every change of level); but no finer
@@ -245,6 +295,13 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
         scale = max(rule.scale(lo * size), replace(rule, limit=rule.limit + 2.0).scale(hi * size))
         layers.append(Layer(first, end, False, hi, scale))
     return layers
+
+
+def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = SliceRule(),
+                size: float = 1.0, frame: float = math.inf, current: bool = True) -> list[Layer]:
+    """The non-empty layers, front to back, of Gaussians at camera depths ``depth`` (N,) scene
+    units in draw order (:func:`measure_layers`, :func:`layers_of`)."""
+    return layers_of(measure_layers(depth, lens, near, rule, frame, current), rule, size)
 
 
 Box = tuple[int, int, int, int]
@@ -257,19 +314,23 @@ GUARD_MIN_REACH = 8
 repeating the frame's edge serves them."""
 
 
-def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, layers: list[Layer],
-                 near: float) -> list[Box]:
-    """Per layer the pixels its blend can touch, (x0, y0, x1, y1) image pixels of ``camera``, rows
-    from the top, ends exclusive, *not* clipped to the frame (the guard band needs to know how far
-    a layer reaches beyond it): the union of its Gaussians' 3σ boxes, with σ bounded by the largest
-    scale (``largest``, (N,) float32 in scene order) through the norm of the projection's Jacobian
-    (clamped as project.glsl clamps it: Camera.frustum_limits), the 0.3 px² low-pass and a pixel
-    of margin; a lensed layer (blurred by the lens as drawn) the frame. Every draw runs it: float32,
-    and the layers' ranges reduced in one pass (≈ 15 ms a million Gaussians on one core)."""
+def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, bounds: np.ndarray,
+                 near: float) -> np.ndarray:
+    """(K, 4) int64 per slice of ``bounds`` (LayerStats.bounds) the pixels its blend can touch,
+    (x0, y0, x1, y1) image pixels of ``camera``, rows from the top, ends exclusive, *not* clipped
+    to the frame (the guard band needs to know how far a layer reaches beyond it): the union of
+    its Gaussians' 3σ boxes, with σ bounded by the largest scale (``largest``, (N,) float32 in
+    scene order) through the norm of the projection's Jacobian (clamped as project.glsl clamps it:
+    Camera.frustum_limits), the 0.3 px² low-pass and a pixel of margin; :data:`NO_BOX` for an
+    empty slice. Float32, the slices' ranges reduced in one pass (glsl/plan_stats.comp is the
+    twin)."""
     w, h = camera.width, camera.height
-    live = [layer for layer in layers if not math.isinf(layer.radius)]  # the huge-CoC layers are the ends
-    if not live:
-        return [(0, 0, w, h)] * len(layers)
+    k = max(len(bounds) - 3, 0)
+    out = np.tile(np.array(NO_BOX, np.int64), (k, 1))
+    starts, ends = np.asarray(bounds[1:k + 1], np.int64), np.asarray(bounds[2:k + 2], np.int64)
+    full = np.flatnonzero(ends > starts)
+    if not len(full):
+        return out
     # the footprints in the scene's own order (contiguous arithmetic), then four 1-D gathers into
     # the draw order: gathering the (N, 3) means by the order instead costs ten times as much
     t = scene.means @ camera.R.T.astype(np.float32) + camera.T.astype(np.float32)
@@ -279,14 +340,14 @@ def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, 
     gain = np.float32(max(camera.fx, camera.fy)) / z * np.sqrt(1.0 + tx * tx + ty * ty)
     reach = 3.0 * np.sqrt((gain * largest) ** 2 + np.float32(0.3)) + 1.0
     u, v = camera.fx * t[:, 0] / z + camera.cx, camera.fy * t[:, 1] / z + camera.cy
-    first = live[0].first
-    idx = order[first:live[-1].end]
-    starts = np.array([layer.first - first for layer in live])
+    first = int(starts[full[0]])
+    idx = order[first:int(ends[full[-1]])]
+    seg = starts[full] - first  # the non-empty slices are contiguous: reduceat over their starts
     # bounded well beyond any guard band, so that the int conversion cannot overflow
-    x0, y0 = (np.clip(np.floor(np.minimum.reduceat((a - reach)[idx], starts)), -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
-    x1, y1 = (np.clip(np.ceil(np.maximum.reduceat((a + reach)[idx], starts)) + 1, -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
-    boxes = iter(zip(x0.astype(int), y0.astype(int), x1.astype(int), y1.astype(int)))
-    return [(0, 0, w, h) if math.isinf(layer.radius) else tuple(int(b) for b in next(boxes)) for layer in layers]
+    x0, y0 = (np.clip(np.floor(np.minimum.reduceat((a - reach)[idx], seg)), -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
+    x1, y1 = (np.clip(np.ceil(np.maximum.reduceat((a + reach)[idx], seg)) + 1, -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
+    out[full] = np.stack([x0, y0, x1, y1], 1).astype(np.int64)
+    return out
 
 
 def layer_reach(layer: Layer) -> int:
@@ -367,20 +428,43 @@ class FramePlan:
         return len(self.layers) == 1 and not self.layers[0].lensed and self.layers[0].radius == 0.0
 
 
-def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, lens: Lens, near: float,
-               rule: SliceRule, size: float = 1.0) -> FramePlan:
-    """The sliced mode's plan of a frame of ``scene`` seen by ``camera`` in the draw order ``order``
-    (N,) (nearest first), ``largest`` (N,) float32 each Gaussian's largest scale, for a kernel of
-    ``size`` (plan_layers). A pinhole frame (:attr:`FramePlan.pinhole`) gets no boxes: it is drawn
-    whole."""
+def pinhole_plan(count: int, width: int, height: int) -> FramePlan:
+    """The plan at A = 0, made without looking at a Gaussian: one unblurred layer, the whole draw
+    order of ``count`` Gaussians (those behind the near plane are culled as the pinhole culls them),
+    drawn whole into a frame of ``width`` × ``height``."""
+    return FramePlan([Layer(0, count, False, 0.0, 1)], 0, [(0, 0, width, height)], [(True,) * 4])
+
+
+def frame_plan(stats: LayerStats, camera: Camera, rule: SliceRule, size: float = 1.0) -> FramePlan:
+    """The sliced mode's plan of a frame of ``camera`` from what was measured of its Gaussians
+    (``stats``, with boxes), for a kernel of ``size`` (:func:`layers_of`): O(layers), the same
+    for the GPU's plan and numpy's. A pinhole frame (:attr:`FramePlan.pinhole`) gets no boxes: it is
+    drawn whole."""
     w, h = camera.width, camera.height
-    layers = plan_layers(camera_depths(scene.means, camera)[order], lens, near, rule, size, max(w, h) / size)
+    layers = layers_of(stats, rule, size)
     whole = FramePlan(layers, 0, [(0, 0, w, h)] * len(layers), [(True,) * 4] * len(layers))
     if not layers or whole.pinhole:
         return whole
-    boxes = screen_boxes(scene, largest, order, camera, layers, near)
+    slice_boxes = iter(tuple(int(x) for x in b) for b, first, end in zip(stats.boxes, stats.bounds[1:], stats.bounds[2:])
+                       if end > first)
+    boxes = [(0, 0, w, h) if layer.lensed else next(slice_boxes) for layer in layers]
     guard = guard_band(layers, boxes, w, h, rule)
     return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard))
+
+
+def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, lens: Lens, near: float,
+               rule: SliceRule, size: float = 1.0, current: bool = True) -> FramePlan:
+    """The sliced mode's plan of a frame of ``scene`` seen by ``camera`` in the draw order ``order``
+    (N,) (nearest first; ``current``: sorted for this view, :func:`measure_layers`), ``largest``
+    (N,) float32 each Gaussian's largest scale, for a kernel of ``size`` (:func:`frame_plan`): the
+    numpy twin of the GPU's (rendering/layer_plan.py). At A = 0 no Gaussian is looked at
+    (:func:`pinhole_plan`)."""
+    w, h = camera.width, camera.height
+    if lens.aperture == 0.0:
+        return pinhole_plan(len(order), w, h)
+    stats = measure_layers(camera_depths(scene.means, camera)[order], lens, near, rule, max(w, h) / size, current)
+    stats = replace(stats, boxes=screen_boxes(scene, largest, order, camera, stats.bounds, near))
+    return frame_plan(stats, camera, rule, size)
 
 
 # ---- the aperture ----------------------------------------------------------------------------------
@@ -420,8 +504,14 @@ class Aperture:
         return np.all(u[..., None, 0] * pl[:, 0] + u[..., None, 1] * pl[:, 1] <= pl[:, 2], axis=-1)
 
     def whole(self) -> "LensCell":
-        """The whole aperture as one cell, seen from its centre: the single pass's kernel."""
-        return LensCell(self.planes(), not self.blades, np.zeros(2), 1.0, 1.0)
+        """The whole aperture as one cell, seen from its centre: the single pass's kernel (one
+        object per aperture, so that what is made for it, such as its N(ρ) tables, is made once)."""
+        return _whole(self)
+
+
+@functools.lru_cache(maxsize=64)
+def _whole(aperture: Aperture) -> "LensCell":
+    return LensCell(aperture.planes(), not aperture.blades, np.zeros(2), 1.0, 1.0)
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,15 +16,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from dofview.camera import Camera
-from dofview.rendering.depth_order import front_to_back
+from dofview.rendering.depth_order import front_to_back, order_key
 
 
 @dataclass
 class SortResult:
-    """A finished sort: ``order`` (N,) uint32 back to front, for ``view_key``, taking ``ms``."""
+    """A finished sort: ``order`` (N,) uint32 back to front, for the view of ``view_key``
+    (Camera.view_key) and every view of the same ``order_key`` (depth_order.order_key), taking ``ms``."""
 
     order: np.ndarray
     view_key: bytes
+    order_key: bytes
     ms: float
 
 
@@ -77,7 +79,7 @@ class SortThread:
                 self._busy = True
             t0 = time.perf_counter()
             order = front_to_back(means, camera)[::-1].copy()
-            res = SortResult(order, camera.view_key(), (time.perf_counter() - t0) * 1e3)
+            res = SortResult(order, camera.view_key(), order_key(camera), (time.perf_counter() - t0) * 1e3)
             with self._cond:
                 self._result = res
                 self._busy = False

@@ -41,8 +41,13 @@ mat3 rotation(vec4 q) {  // unit quaternion (w, x, y, z) -> rotation matrix (col
                 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y));
 }
 
-// Camera z of Gaussian g's mean (the sort key's source).
-float camera_depth(vec3 mean) { return dot(u_R2, mean) + u_T.z; }
+// Camera z of Gaussian g's mean (the sort key's source): each step rounded, in this order, as
+// depth_order.camera_depths computes it on the CPU, so that both give the same bits (an order
+// sorted on the CPU is sorted by these keys: the sliced mode's plan, layer_plan.py, relies on it).
+float camera_depth(vec3 mean) {
+    precise float z = ((u_R2.x * mean.x + u_R2.y * mean.y) + u_R2.z * mean.z) + u_T.z;
+    return z;
+}
 
 // False when Gaussian g is culled: behind the near plane, degenerate, below tau everywhere or
 // off screen.
