@@ -11,6 +11,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from dofview.errors import DofviewError, require_extra
 from dofview.options import number, vec3
 from dofview.request import open_scene
@@ -27,8 +29,9 @@ def add_parser(sub) -> None:
     p.add_argument("--iterations", type=number(1, None, integer=True, what="iterations"), default=2000)
     p.add_argument("--warmup", type=number(0, None, integer=True, what="warm-up"), default=500,
                    help="exposure-aligned pinhole steps before tonemapping and depth of field (default 500)")
-    p.add_argument("--gaussians", type=number(1, None, integer=True, what="initial Gaussians"), default=300,
-                   help="initial random Gaussians (default 300)")
+    p.add_argument("--gaussians", type=number(1, None, integer=True, what="initial Gaussians"), default=None,
+                   help="initial random Gaussians, without SfM points (default: one per 16 pixels of a photo, "
+                        "at most --max-gaussians)")
     p.add_argument("--max-gaussians", type=number(1, None, integer=True, what="max Gaussians"), default=1500)
     p.add_argument("--variant", choices=("full", "no-exp", "no-foc", "ldr"), default="no-foc",
                    help="full: Eq. 8 with L_exp and L_foc; no-foc (the default: L_foc lowered the held-out "
@@ -63,7 +66,9 @@ def add_parser(sub) -> None:
     p.add_argument("--height", type=number(8, None, integer=True, what="height"), default=48)
     p.add_argument("--focal-mm", type=number(0, None, lo_open=True, what="focal length"), default=50.0)
     p.add_argument("--sensor-mm", type=number(0, None, lo_open=True, what="sensor width"), default=36.0)
-    p.add_argument("--units-per-metre", type=number(0, None, lo_open=True, what="units per metre"), default=10.0)
+    p.add_argument("--units-per-metre", "--units-per-meter", type=_units_per_metre, default=None,
+                   help="scene units per metre, which sets the physical lens's size in the scene (default auto: "
+                        "chosen so that f/1.4 blurs the scene's depth by up to 2%% of the width, whatever its units)")
     p.add_argument("--ev-min", type=float, default=-10.0, help="lowest exposure, stops from mid-grey key (default -10)")
     p.add_argument("--ev-max", type=float, default=2.0, help="highest exposure, stops from the key (default 2)")
     p.add_argument("--orbit", type=number(0, 90, hi_open=False, what="orbit"), default=15.0,
@@ -92,6 +97,10 @@ def _raster_option(p: argparse.ArgumentParser) -> None:
 
     p.add_argument("--raster", choices=("auto", *BACKENDS), default="quad",
                    help="renderer backend of the renders (default quad, the reference)")
+
+
+def _units_per_metre(text: str) -> float | None:
+    return None if text == "auto" else number(0, None, lo_open=True, what="units per metre")(text)
 
 
 def _torch() -> None:
@@ -155,7 +164,24 @@ def run_make_dataset(args: argparse.Namespace) -> int:
     path = generate(scene, args.output, capture, args.eye, args.target, raster=args.raster)
     points = f", {args.points} SfM-like points" if args.points else ""
     print(f"{path}: {args.views} photos, {args.held_out} held-out HDR views{points}", file=sys.stderr)
+    print(blur_summary(json.loads(path.read_text())), file=sys.stderr)
     return 0
+
+
+def blur_summary(doc: dict) -> str:
+    """What lens a generated dataset's photos were taken with, and the blur they carry (the
+    largest CoC radius, px, of each photo over what it sees)."""
+    gen, frames = doc["generator"], [f for f in doc["frames"] if "max_coc_px" in f]
+    upm = doc["units_per_metre"]
+    how = (f"chosen so that f/{min(gen['f_numbers']):g} blurs the depth by up to {100 * gen['blur_fraction']:g}% of "
+           "the width; --units-per-metre sets it") if gen.get("units_per_metre") == "auto" else "as given"
+    focal = frames[0]["focal_length_mm"] if frames else float("nan")
+    cocs = [f["max_coc_px"] for f in frames]
+    lines = [f"lens: {focal:g} mm on a {doc['sensor_mm']:g} mm sensor, the scene at {upm:.4g} units per metre ({how})"]
+    if cocs:
+        lines.append(f"largest blur per photo (CoC radius, px): median {float(np.median(cocs)):.2f}, "
+                     f"max {max(cocs):.2f}; " + " ".join(f"{c:.1f}" for c in cocs))
+    return "\n".join(lines)
 
 
 def run_eval(args: argparse.Namespace) -> int:

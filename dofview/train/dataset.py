@@ -25,6 +25,7 @@ from dofview.train.exif import read_exif
 from dofview.train.points import PointCloud, read_points
 
 SETTINGS = ("exposure_time", "f_number", "focus_distance", "focal_length_mm")
+NEAR_FRACTION = 0.01  # the trainer's and the evaluation's near plane, as a fraction of the scene's near depth
 
 
 @dataclass(frozen=True)
@@ -92,11 +93,31 @@ class Dataset:
         return float(np.exp(np.mean([math.log(s.exposure) for s in self.shots])))
 
     def scene_depths(self) -> tuple[float, float]:
-        """(near, far) scene depths: ``depth_range``, else ½× the nearest and 2× the farthest focus."""
+        """(near, far) scene depths (scene units): ``depth_range``, else ½× the nearest and 2× the
+        farthest finite focus, else the 2nd–98th percentile of the SfM points' depths in the
+        cameras, widened the same way. Every length the trainer uses is relative to these, so
+        its behaviour does not depend on the scene's units."""
         if self.depth_range is not None:
             return self.depth_range
         focus = [s.focus for s in self.shots if math.isfinite(s.focus)]
-        return (0.5 * min(focus), 2.0 * max(focus)) if focus else (0.1, 100.0)
+        if not focus and self.points is not None:
+            z = np.concatenate([s.camera.world_to_camera(self.points.positions)[:, 2] for s in self.shots])
+            focus = list(np.percentile(z[z > 0], [2, 98])) if (z > 0).any() else []
+        if not focus:
+            raise DofviewError(f"{self.root}: cannot tell where the scene lies (every photo is focused at infinity "
+                               "and there are no SfM points in front of the cameras): give depth_range")
+        return 0.5 * min(focus), 2.0 * max(focus)
+
+    def subject_distance(self) -> float:
+        """Where the photographer focused: the median finite focus distance (scene units), else the
+        geometric mean of :meth:`scene_depths`. The trainer's position learning rate is relative to it."""
+        focus = [s.focus for s in self.shots if math.isfinite(s.focus)]
+        return float(np.median(focus)) if focus else math.sqrt(math.prod(self.scene_depths()))
+
+    def near_plane(self) -> float:
+        """The near plane (camera z, scene units) of the trainer's and the evaluation's renders:
+        :data:`NEAR_FRACTION` of the near scene depth."""
+        return NEAR_FRACTION * self.scene_depths()[0]
 
 
 def _camera(path: Path, where: str, top: dict, frame: dict) -> Camera:

@@ -2,7 +2,8 @@
 
 Each held-out view is rendered by dofview's GL renderer (pinhole, so all in focus) from the
 written scene file, as ``dofview render --tau 0`` would (no τ cut: as the held-out views were made,
-:data:`dofview.train.generate.PHOTO_RENDER`). An HDR ("linear") scene's render is
+:data:`dofview.train.generate.PHOTO_RENDER`), with the trainer's near plane
+(:meth:`Dataset.near_plane`). An HDR ("linear") scene's render is
 radiance as it stands; an sRGB scene (the plain LDR fit) is decoded to linear and divided by the
 dataset's key exposure (geometric mean of t/N²), the exposure its colours correspond to on
 average.
@@ -18,7 +19,7 @@ Metrics, against the ground-truth EXR:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -72,7 +73,8 @@ def bright_ratio(pred: np.ndarray, truth: np.ndarray) -> float | None:
 def render_radiance(scene: GaussianScene, dataset: Dataset, renderer) -> list[np.ndarray]:
     """(H, W, 3) float32 linear radiance of each held-out view, as the scene file renders it."""
     scale = 1.0 if scene.colour_space == "linear" else 1.0 / dataset.key_exposure()
-    return [renderer.render(h.camera, Lens(1.0, 0.0), PHOTO_RENDER).rgba[..., :3] * scale for h in dataset.held_out]
+    settings = replace(PHOTO_RENDER, near=dataset.near_plane())
+    return [renderer.render(h.camera, Lens(1.0, 0.0), settings).rgba[..., :3] * scale for h in dataset.held_out]
 
 
 def evaluate(scene: GaussianScene, dataset: Dataset, raster: str = "quad") -> Evaluation:

@@ -4,7 +4,13 @@ Every training view gets a random focus distance (uniform in inverse depth betwe
 90th percentile of what the view sees), a random f-number from a list and a random exposure
 (log-uniform around the view's mid-grey key), is rendered with depth of field, tonemapped by
 Eq. 7 (clip, then gamma) and quantised to 8 bits: a PNG whose eXIf chunk holds the settings.
-Held-out views are rendered all-in-focus and kept as linear HDR EXRs for evaluation. No depth
+Held-out views are rendered all-in-focus and kept as linear HDR EXRs for evaluation.
+
+Nothing depends on the scene's units: the near plane is a fraction of the camera's distance to its
+target, and the physical lens reads the scene at a size (``units_per_metre``) chosen so that the
+widest aperture blurs the base view's depth range by a set fraction of the image width
+(:func:`auto_units_per_metre`), unless the caller gives the size. Each photo's largest blur (CoC
+radius in pixels over what it sees) is written beside its settings (``max_coc_px``). No depth
 range is written: the trainer must find the geometry itself, from the photos alone or, with
 ``points``, from SfM-like points (:func:`sfm_points`) as a real capture's COLMAP run would give.
 """
@@ -15,7 +21,7 @@ import json
 import math
 import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +43,11 @@ MID_GREY = 0.18
 # another would ask for what it cannot draw); the photos, the held-out views, the trainer and the
 # evaluation all use it.
 PHOTO_RENDER = RenderSettings(tau=0.0, dof="splat")
+NEAR_FRACTION = 1e-3  # the photos' near plane, as a fraction of the camera's distance to its target
+# The auto lens: at the widest aperture, focused at the near end of the base view's depths (10th
+# percentile), the far end (90th) is blurred by a CoC radius of this fraction of the image width.
+BLUR_FRACTION = 0.02
+MAX_MAGNIFICATION_DEPTH = 4.0  # the auto lens keeps the near depth ≥ this many focal lengths away
 
 
 @dataclass(frozen=True)
@@ -47,7 +58,8 @@ class Capture:
         views, held_out: training photos and evaluation views.
         width, height: image size, pixels.
         focal_mm, sensor_mm: lens focal length and sensor width (fix the field of view).
-        units_per_metre: scene units per metre (sets the aperture diameter f/N in scene units).
+        units_per_metre: scene units per metre (sets the aperture diameter f/N in scene units), or
+            None: chosen from the scene by :func:`auto_units_per_metre`.
         ev_range: exposure offsets in stops from the view's key exposure, drawn uniformly.
         f_numbers: f-numbers drawn from.
         orbit_deg: cameras orbit the target by up to this yaw and half this pitch.
@@ -61,7 +73,7 @@ class Capture:
     height: int = 48
     focal_mm: float = 50.0
     sensor_mm: float = 36.0
-    units_per_metre: float = 10.0
+    units_per_metre: float | None = None
     ev_range: tuple[float, float] = (-10.0, 2.0)
     f_numbers: tuple[float, ...] = (1.4, 2.0, 2.8, 4.0, 5.6, 8.0)
     orbit_deg: float = 15.0
@@ -74,6 +86,8 @@ class Capture:
             raise DofviewError("need ≥ 1 view, ≥ 0 held-out views, ≥ 0 points and images of at least 8×8 pixels")
         if not (self.ev_range[0] <= self.ev_range[1]) or not self.f_numbers or min(self.f_numbers) <= 0:
             raise DofviewError("exposure range must be low ≤ high and f-numbers > 0")
+        if self.units_per_metre is not None and not (math.isfinite(self.units_per_metre) and self.units_per_metre > 0):
+            raise DofviewError(f"units per metre must be a finite value > 0, got {self.units_per_metre}")
 
     @property
     def fov_deg(self) -> float:
@@ -117,6 +131,10 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
         lo, hi = scene.robust_bounds()
         target = (lo + hi) / 2
     eye, target = np.asarray(eye, np.float64), np.asarray(target, np.float64)
+    distance = float(np.linalg.norm(target - eye))
+    if not distance > 0:
+        raise DofviewError("--eye and --target must be different points")
+    render = replace(render, near=NEAR_FRACTION * distance)
     rng = np.random.default_rng(capture.seed)
     angles = rng.uniform(-1, 1, (capture.views + capture.held_out, 2)) * [capture.orbit_deg, capture.orbit_deg / 2]
     renderer = get_backend(raster, scene)
@@ -125,7 +143,13 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     (tmp / "images").mkdir(parents=True)
     (tmp / "hdr").mkdir()
     frames = []
+    auto_units = capture.units_per_metre is None
     try:
+        if auto_units:
+            base = orbit(eye, target, 0.0, 0.0, capture)
+            seen = renderer.render(base, Lens(1.0, 0.0), render)
+            depths = seen.depth[_covered(seen, "the base view")]
+            capture = replace(capture, units_per_metre=auto_units_per_metre(depths, base.fx, capture))
         with Progress(f"rendering dataset {out.name}", len(angles), delay=0.0 if progress else 1e9) as bar:
             for i, (yaw, pitch) in enumerate(angles):
                 cam = orbit(eye, target, yaw, pitch, capture)
@@ -153,7 +177,9 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
             "generator": {"scene": scene.name, "colour_space": scene.colour_space, "gaussians": scene.count,
                           "eye": eye.tolist(), "target": target.tolist(), "seed": capture.seed,
                           "ev_range": list(capture.ev_range), "f_numbers": list(capture.f_numbers),
-                          "orbit_deg": capture.orbit_deg, "points": capture.points},
+                          "orbit_deg": capture.orbit_deg, "points": capture.points,
+                          "units_per_metre": "auto" if auto_units else capture.units_per_metre,
+                          "blur_fraction": BLUR_FRACTION if auto_units else None, "near": render.near},
             "frames": frames,
         }
         (tmp / "transforms.json").write_text(json.dumps(doc, indent=1))
@@ -190,12 +216,37 @@ def sfm_points(scene: GaussianScene, count: int, eye: np.ndarray, fx: float, key
     return positions, to_uint8(np.minimum(radiance * key, 1.0) ** (1.0 / gamma))
 
 
-def _shoot(renderer, cam: Camera, pinhole, capture: Capture, render: RenderSettings,
-           rng: np.random.Generator, folder: Path, i: int) -> dict:
-    """Take training photo ``i``: draw its settings, render with depth of field, write the PNG."""
+def _covered(pinhole, view: str) -> np.ndarray:
+    """(H, W) bool: the pixels a pinhole render covers (α > ½); an error naming ``view`` when none."""
     covered = pinhole.alpha > 0.5
     if not covered.any():
-        raise DofviewError(f"view {i} sees nothing of the scene: give --eye/--target that look at it")
+        raise DofviewError(f"{view} sees nothing of the scene: give --eye/--target that look at it")
+    return covered
+
+
+def auto_units_per_metre(depths: np.ndarray, fx: float, capture: Capture) -> float:
+    """Scene units per metre at which the widest aperture (min f-number), focused at the near end
+    of ``depths`` (their 10th percentile, scene units), blurs the far end (90th) by a CoC radius of
+    :data:`BLUR_FRACTION` of the image width; ``fx`` pixels of focal length.
+
+    Eq. 3 with focus z_n: R = ½·f_x·(f/N)·z_n/(z_n − f)·(1/z_n − 1/z_f), solved for the focal
+    length in scene units f = R·z_n/(c + R), c = ½·f_x·(1 − z_n/z_f)/N, and kept ≤ z_n /
+    :data:`MAX_MAGNIFICATION_DEPTH` (a shallow scene would otherwise be shot at macro distance).
+    Every depth scales with the scene, so the blur in pixels does not depend on its units.
+    """
+    near, far = (float(v) for v in np.percentile(depths, [10, 90]))
+    c = 0.5 * fx * (1.0 - near / far) / min(capture.f_numbers)
+    radius = BLUR_FRACTION * capture.width
+    focal_units = min(radius * near / (c + radius), near / MAX_MAGNIFICATION_DEPTH)
+    return focal_units / (capture.focal_mm * 1e-3)
+
+
+def _shoot(renderer, cam: Camera, pinhole, capture: Capture, render: RenderSettings,
+           rng: np.random.Generator, folder: Path, i: int) -> dict:
+    """Take training photo ``i``: draw its settings, render with depth of field, write the PNG.
+    ``capture.units_per_metre`` is set. The frame's ``max_coc_px`` is the photo's largest CoC
+    radius (px) over the pixels the scene covers."""
+    covered = _covered(pinhole, f"view {i}")
     depths = pinhole.depth[covered]
     near, far = np.percentile(depths, [10, 90])
     focus = 1.0 / rng.uniform(1.0 / far, 1.0 / near)
@@ -208,6 +259,7 @@ def _shoot(renderer, cam: Camera, pinhole, capture: Capture, render: RenderSetti
         "focus_distance": float(focus), "focal_length_mm": capture.focal_mm,
     }
     lens = PhysicalLens(capture.focal_mm, fnumber, capture.sensor_mm, capture.units_per_metre).lens(cam.fx, focus)
+    settings["max_coc_px"] = float(lens.coc_radius(depths).max())
     frame = renderer.render(cam, lens, render)
     photo = to_uint8(display(frame.rgba, frame.encoded, Tonemap(exposure=math.log2(exposure), gamma=capture.gamma)))
     name = f"images/view_{i:03d}.png"

@@ -25,6 +25,7 @@ PARAMS = ("means", "log_scales", "quats", "opacity_logits", "log_colours", "sh_r
 MIN_COLOUR = 1e-4  # a floor for the log of an initial colour (black pixels)
 RANDOM_OPACITY = 0.3
 POINTS_OPACITY = 0.1  # the reference 3DGS start's: SfM points lie dense on the surfaces
+PIXELS_PER_RANDOM = 16  # the default random start: one Gaussian per this many pixels of a photo
 
 
 class GaussianModel:
@@ -73,16 +74,25 @@ class GaussianModel:
         return {k: v.detach().cpu() for k, v in self.params.items()}
 
 
-def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int, linear: bool,
+def random_start_count(dataset: Dataset, max_count: int | None = None) -> int:
+    """The default size of a random start: one Gaussian per :data:`PIXELS_PER_RANDOM` pixels of
+    the average photo, at most ``max_count``."""
+    pixels = np.mean([s.camera.width * s.camera.height for s in dataset.shots])
+    count = max(1, round(pixels / PIXELS_PER_RANDOM))
+    return count if max_count is None else min(count, max_count)
+
+
+def initial_model(dataset: Dataset, photos: list[np.ndarray], count: int | None, linear: bool,
                   rng: np.random.Generator, device: torch.device, sh_degree: int = 0,
                   max_count: int | None = None) -> GaussianModel:
     """The Gaussians a fit starts from, view-independent at first (SH bands 1..``sh_degree`` zero):
     the dataset's SfM points when it has them (:func:`points_start`, at most ``max_count``), else
-    ``count`` random ones (:func:`random_start`)."""
+    ``count`` random ones (:func:`random_start`; None: :func:`random_start_count`)."""
     if dataset.points is not None:
         means, colours, sizes = points_start(dataset, photos, linear, rng, max_count)
         opacity = POINTS_OPACITY
     else:
+        count = random_start_count(dataset, max_count) if count is None else count
         means, colours, sizes = random_start(dataset, photos, count, linear, rng)
         opacity = RANDOM_OPACITY
     n = len(means)

@@ -3,9 +3,13 @@
 Stage 1 (``warmup`` steps): pinhole renders against exposure-aligned photos (no tonemapping, no
 depth of field), which gives a first HDR point cloud. Stage 2: each render goes through the
 photo's thin lens (Eq. 3–5) and its exposure and gamma (Eq. 7) and is scored by Eq. 8. Every
-``densify_every`` steps Gaussians whose projected means had a large mean gradient are cloned
-(small ones) or split in two (large ones), and nearly transparent ones are pruned, so the model
-grows only where the photos ask for it; the count is logged over time. With ``sh_degree`` > 0
+``densify_every`` steps Gaussians whose projected means had a large mean gradient (the mean's
+shift measured in half image sizes, as the reference 3DGS measures it, so one threshold holds at
+any resolution) are cloned (small ones) or split in two (those wider than a fraction of the image
+width), and nearly transparent ones are pruned, so the model grows only where the photos ask for
+it, up to ``max_gaussians``; the count is logged over time. The means' learning rate is relative
+to the subject's distance (where the photos are focused) and falls exponentially over the run (as in the reference 3DGS), so
+nothing depends on the scene's units. With ``sh_degree`` > 0
 the colour turns view-dependent band by band, as the reference 3DGS trainer does (one SH degree
 more every 1000 of its 30 000 steps, here every 1/30 of ``iterations``).
 
@@ -19,12 +23,13 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.io.atomic import atomic_output
 from dofview.lens import Lens
@@ -48,21 +53,27 @@ TRAIN_RENDER = PHOTO_RENDER
 class TrainConfig:
     """Optimisation settings; learning rates are per step of Adam on the raw parameters.
 
-    ``lr_means`` (random start) and ``lr_means_points`` (SfM start) are relative to the scene's depth
-    extent (far − near, scene units).
+    ``lr_means`` (random start) and ``lr_means_points`` (SfM start) are relative to the subject's
+    distance (:meth:`Dataset.subject_distance`, scene units): not to the depth range, which a far
+    background stretches (a tap 2 units away with a wall 90 units behind it).
     """
 
     iterations: int = 2000
     warmup: int = 500
-    initial: int = 300
+    initial: int | None = None  # random start; None: sized to the photos (model.random_start_count)
     max_gaussians: int = 1500
     densify_every: int = 100
     densify_until: float = 0.8  # fraction of ``iterations``
-    grad_threshold: float = 2e-4  # mean |∂L/∂mean2d| (loss per pixel of shift) that triggers densification
+    # mean |∂L/∂mean2d| over the views that draw a Gaussian, the mean's shift measured in half image
+    # sizes (the reference 3DGS's NDC units and threshold): the same for any resolution and scene scale
+    grad_threshold: float = 2e-4
     prune_opacity: float = 0.01
-    split_scale: float = 1.5  # Gaussians wider than this many pixels (at depth 1 scale) are split
-    lr_means: float = 2e-3  # from the random start: its points are off by up to the depth range
-    lr_means_points: float = 1.6e-4  # from SfM points, off by a pixel or so: the reference 3DGS's rate
+    split_fraction: float = 0.01  # Gaussians wider (largest σ) than this fraction of the image width are split
+    lr_means: float = 3.2e-3  # from the random start: its points are off by up to the depth range
+    # from SfM points, off by a pixel or so: the reference 3DGS's 1.6e-4 of its cameras' extent, which
+    # was 1.6e-4 of the depth range here, ~1.6× the subject's distance on an object
+    lr_means_points: float = 2.5e-4
+    lr_means_decay: float = 0.01  # the means' rate falls exponentially to this fraction of it by the last step (3DGS: 0.01)
     lr_log_scales: float = 1e-2
     lr_quats: float = 2e-3
     lr_opacity: float = 5e-2
@@ -75,7 +86,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.variant not in VARIANTS:
             raise DofviewError(f"variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
-        if self.iterations < 1 or self.initial < 1 or self.warmup < 0:
+        if self.iterations < 1 or (self.initial is not None and self.initial < 1) or self.warmup < 0:
             raise DofviewError("iterations and initial Gaussians must be ≥ 1, warm-up ≥ 0")
         if self.sh_degree not in (0, 1, 2, 3):
             raise DofviewError(f"--sh-degree must be 0, 1, 2 or 3, got {self.sh_degree}")
@@ -94,6 +105,13 @@ class History:
     every: int = 50
     rows: list[dict] = field(default_factory=list)
     scores: list[dict] = field(default_factory=list)
+
+
+def ndc_gradient(grad: torch.Tensor, camera: Camera) -> torch.Tensor:
+    """(M,) the densification statistic of one view: |∂L/∂mean2d| with the shift measured in half
+    image sizes (the reference 3DGS's NDC units), from ``grad`` (M, 2), ∂L per pixel of shift."""
+    half = torch.tensor([camera.width / 2, camera.height / 2], dtype=grad.dtype, device=grad.device)
+    return (grad * half).norm(dim=1)
 
 
 def pick_device(name: str = "auto") -> torch.device:
@@ -123,8 +141,8 @@ class Trainer:
         self.photos = [torch.tensor(p, device=self.device) for p in photos]
         self.lenses = dataset.lenses()
         self.key = dataset.key_exposure()
-        near, far = dataset.scene_depths()
-        self.extent = far - near
+        self.subject = dataset.subject_distance()
+        self.render = replace(TRAIN_RENDER, near=dataset.near_plane())
         self.linear = config.variant != "ldr"
         self.model = initial_model(dataset, photos, config.initial, self.linear, self.rng, self.device,
                                    config.sh_degree, config.max_gaussians)
@@ -138,7 +156,7 @@ class Trainer:
     def _lrs(self) -> dict[str, float]:
         c = self.config
         lr_means = c.lr_means_points if self.dataset.points is not None else c.lr_means
-        return {"means": lr_means * self.extent, "log_scales": c.lr_log_scales, "quats": c.lr_quats,
+        return {"means": lr_means * self.subject, "log_scales": c.lr_log_scales, "quats": c.lr_quats,
                 "opacity_logits": c.lr_opacity, "log_colours": c.lr_colours, "sh_rest": c.lr_sh}
 
     def _new_optimiser(self) -> None:
@@ -160,12 +178,12 @@ class Trainer:
         warm = self.step < self.config.warmup
         if self.config.variant == "ldr" or warm:
             raster = self.rasterise(means, quats, scales, opacities, colours, shot.camera, Lens(1.0, 0.0),
-                                    TRAIN_RENDER, retain_mean2d=True, sh=sh)
+                                    self.render, retain_mean2d=True, sh=sh)
             if self.config.variant == "ldr":
                 return delta(raster.rgb, photo), raster
             return aligned_loss(raster.rgb, photo, shot.exposure, self.key, self.dataset.gamma), raster
         raster = self.rasterise(means, quats, scales, opacities, colours, shot.camera, self.lenses[i],
-                                TRAIN_RENDER, retain_mean2d=True, sh=sh)
+                                self.render, retain_mean2d=True, sh=sh)
         ldr = tonemap(raster.rgb, shot.exposure, self.dataset.gamma)
         loss, _ = photo_loss(ldr, photo, use_exp=self.config.variant != "no-exp",
                              use_foc=self.config.variant != "no-foc")
@@ -175,10 +193,14 @@ class Trainer:
         i = int(self.rng.integers(len(self.dataset.shots)))
         if self.config.warmup and self.step == self.config.warmup:
             self._new_optimiser()  # stage 2 starts with fresh moments: the loss changes scale
+        decay = self.config.lr_means_decay ** (self.step / self.config.iterations)
+        for group in self.optimiser.param_groups:
+            if group["name"] == "means":
+                group["lr"] = self._lrs()["means"] * decay
         loss, raster = self.loss(i)
         loss.backward()
         if raster.mean2d.grad is not None:
-            self.grad_sum.index_add_(0, raster.drawn, raster.mean2d.grad.norm(dim=1))
+            self.grad_sum.index_add_(0, raster.drawn, ndc_gradient(raster.mean2d.grad, self.dataset.shots[i].camera))
             self.grad_count.index_add_(0, raster.drawn, torch.ones_like(raster.drawn, dtype=torch.float32))
         self.optimiser.step()
         self.optimiser.zero_grad(set_to_none=True)
@@ -197,10 +219,10 @@ class Trainer:
             grow = torch.nonzero(avg > c.grad_threshold).squeeze(1)
             room = max(c.max_gaussians - self.model.count, 0)
             grow = grow[torch.argsort(avg[grow], descending=True)[:room]]
-            # a Gaussian's width in pixels, judged at its distance from the mean training camera
-            depth = (p["means"][grow] - self._mean_centre()).norm(dim=1).clamp(min=1e-6)
-            px = torch.exp(p["log_scales"][grow]).amax(1) / depth * self._mean_fx()
-            split, clone = grow[px > c.split_scale], grow[px <= c.split_scale]
+            # a Gaussian's width as a fraction of the image width, seen from the mean training camera
+            depth = (p["means"][grow] - self._mean_centre()).norm(dim=1).clamp(min=1e-30)
+            width = torch.exp(p["log_scales"][grow]).amax(1) / depth * self._fx_per_width()
+            split, clone = grow[width > c.split_fraction], grow[width <= c.split_fraction]
             new = {k: [p[k][clone]] for k in PARAMS}
             for _ in range(2):  # each split Gaussian becomes two, sampled from itself, 1.6× smaller
                 sample = torch.randn(len(split), 3, device=self.device) * torch.exp(p["log_scales"][split])
@@ -218,8 +240,9 @@ class Trainer:
         centres = np.mean([s.camera.centre for s in self.dataset.shots], axis=0)
         return torch.tensor(centres, dtype=torch.float32, device=self.device)
 
-    def _mean_fx(self) -> float:
-        return float(np.mean([s.camera.fx for s in self.dataset.shots]))
+    def _fx_per_width(self) -> float:
+        """Mean f_x / image width of the training cameras (½ / tan of half the field of view)."""
+        return float(np.mean([s.camera.fx / s.camera.width for s in self.dataset.shots]))
 
     def _edit(self, keep: torch.Tensor, new: dict[str, torch.Tensor]) -> None:
         """Keep rows ``keep`` of every parameter, append ``new``; Adam moments follow (zeros for new)."""
