@@ -77,6 +77,8 @@ def study_case(renderer: Renderer, camera, lens: Lens, samples: int, tm: Tonemap
         rows.append((name, 1, p))
         if best is None or p > best[1]:
             best, frames["best anchor"] = (name, p), f
+    rows.append(("pinhole", 1, errors(renderer.render(camera, replace(lens, aperture=0.0), RenderSettings()), truth, tm,
+                                      False)["psnr"]))  # what "never below the pinhole" compares with
     rows.append(("sliced", 1, errors(renderer.render(camera, lens, RenderSettings()), truth, tm, False)["psnr"]))
     for n in stages_only:
         rows.append(("stages", n, errors(render_lens_samples(renderer, camera, lens, RenderSettings(), n), truth, tm,
@@ -109,6 +111,9 @@ def plot(path: Path, table: dict[tuple[str, str], list[tuple[str, int, float]]],
             ls = "-" if case == "blur16" else "--"
             best = max(p for m, _, p in rows if m in ANCHOR_KS)
             ax.axhline(best, color="grey", ls=ls, lw=1, label=f"best per-splat single pass, {case}")
+            for m, _, p in rows:
+                if m == "pinhole":
+                    ax.axhline(p, color="black", ls=":" if case == "blur16" else (0, (1, 3)), lw=1, label=f"pinhole, {case}")
             for method, colour in (("pinhole average", "tab:red"), ("per-splat stages", "tab:green"),
                                    ("stages", "tab:blue")):
                 pts = [(n, p) for m, n, p in rows if m == method or (method == "stages" and m == "sliced")]
