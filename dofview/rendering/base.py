@@ -381,7 +381,8 @@ class Renderer(ABC):
 
         if self._sliced is None:
             self._sliced = SlicedDof(self)
-        capture = SliceCapture(camera.width, camera.height, self._sliced)
+        sliced = self._sliced
+        capture = SliceCapture(camera.width, camera.height, lambda: sliced.guard)
         self._sliced.capture = capture
         try:
             self.draw(camera, lens, settings)

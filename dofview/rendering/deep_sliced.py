@@ -29,6 +29,8 @@ behind it shows: its light goes into the next).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import moderngl
 import numpy as np
 
@@ -73,12 +75,12 @@ class SliceCapture:
 
     Args:
         width, height: the frame (px).
-        sliced: the renderer's SlicedDof, whose guard band (px on every side of the frame) the
-            draw sets before its first layer.
+        guard: the draw's guard band (px on every side of the frame), or what gives it once the
+            first layer is composited (SlicedDof sets it as it plans the frame).
     """
 
-    def __init__(self, width: int, height: int, sliced) -> None:
-        self.size, self._sliced = (width, height), sliced
+    def __init__(self, width: int, height: int, guard: int | Callable[[], int]) -> None:
+        self.size, self._guard = (width, height), guard
         self.guard = 0
         self.over: np.ndarray | None = None  # the frame's "over" in the guarded image, GL rows
         self._base: np.ndarray | None = None  # the frame before the current run
@@ -92,39 +94,47 @@ class SliceCapture:
         frame's accumulator (``scale`` 1) or its run's at 1/``scale`` (``fresh``: the run's first)."""
         if box[2] <= box[0] or box[3] <= box[1]:
             return
+        self._start()
+        if scale == 1:
+            self.record(index, box, _read(fbo, box))
+            return
+        if fresh:
+            self._base = self.over.copy()
+            self._run = np.zeros((fbo.height, fbo.width, 4), np.float32)
+        self._run[box[1]:box[3], box[0]:box[2]] = _read(fbo, box)
+        # the full-resolution pixels the run's upsampling reads these texels at (one more around)
+        gh, gw = self.over.shape[:2]
+        region = (max((box[0] - 1) * scale, 0), max((box[1] - 1) * scale, 0),
+                  min((box[2] + 1) * scale, gw), min((box[3] + 1) * scale, gh))
+        base = self._base[region[1]:region[3], region[0]:region[2]]
+        up = _upsample_window(self._run, scale, (region[1], region[3]), (region[0], region[2]))
+        self.record(index, region, base + (1.0 - base[..., 3:4]) * up)
+
+    def whole(self, index: int, over: np.ndarray) -> None:
+        """Layer ``index`` left the guarded image's "over" at ``over`` (h, w, 4), GL rows (the CPU
+        twin: slices.sliced_image's ``capture``)."""
+        self._start()
+        self.record(index, (0, 0, over.shape[1], over.shape[0]), over)
+
+    def _start(self) -> None:
         if self.over is None:
             w, h = self.size
-            self.guard = g = self._sliced.guard
+            self.guard = g = self._guard if isinstance(self._guard, int) else self._guard()
             self.over = np.zeros((h + 2 * g, w + 2 * g, 4), np.float32)
-        gh, gw = self.over.shape[:2]
-        if scale == 1:
-            region = box
-            new = _read(fbo, box)
-        else:
-            if fresh:
-                self._base = self.over.copy()
-                self._run = np.zeros((fbo.height, fbo.width, 4), np.float32)
-            self._run[box[1]:box[3], box[0]:box[2]] = _read(fbo, box)
-            # the full-resolution pixels the run's upsampling reads these texels at (one more around)
-            region = (max((box[0] - 1) * scale, 0), max((box[1] - 1) * scale, 0),
-                      min((box[2] + 1) * scale, gw), min((box[3] + 1) * scale, gh))
-            base = self._base[region[1]:region[3], region[0]:region[2]]
-            up = _upsample_window(self._run, scale, (region[1], region[3]), (region[0], region[2]))
-            new = base + (1.0 - base[..., 3:4]) * up
-        # the frame's pixels only: the band is a source of light, not a part of the image
+
+    def record(self, index: int, region: Box, new: np.ndarray) -> None:
+        """The guarded image's "over" is ``new`` within ``region`` (GL pixels) after layer ``index``:
+        keep it at the frame's pixels it changed."""
         g, (w, h) = self.guard, self.size
         x0, y0 = max(region[0], g), max(region[1], g)
         x1, y1 = min(region[2], g + w), min(region[3], g + h)
-        if x1 <= x0 or y1 <= y0:
-            self.over[region[1]:region[3], region[0]:region[2]] = new
-            return
-        inner = new[y0 - region[1]:y1 - region[1], x0 - region[0]:x1 - region[0]]
-        old = self.over[y0:y1, x0:x1]
-        changed = np.abs(inner - old).max(axis=-1) > CHANGE_MIN
-        rows, cols = np.nonzero(changed)
-        self.pixels.append((h - 1 - (rows + y0 - g)) * w + (cols + x0 - g))
-        self.layers.append(index)
-        self.values.append(inner[rows, cols])
+        if x1 > x0 and y1 > y0:  # the frame's pixels only: the band is a source of light, not a part of the image
+            inner = new[y0 - region[1]:y1 - region[1], x0 - region[0]:x1 - region[0]]
+            changed = np.abs(inner - self.over[y0:y1, x0:x1]).max(axis=-1) > CHANGE_MIN
+            rows, cols = np.nonzero(changed)
+            self.pixels.append((h - 1 - (rows + y0 - g)) * w + (cols + x0 - g))
+            self.layers.append(index)
+            self.values.append(inner[rows, cols])
         self.over[region[1]:region[3], region[0]:region[2]] = new
 
     def deep(self, resolved: np.ndarray, depths: np.ndarray, settings: DeepSettings, encoded: bool) -> DeepFrame:
