@@ -35,7 +35,6 @@ from dofview.errors import DofviewError
 from dofview.frame import Frame, RenderSettings
 from dofview.lens import Lens, LensRequest
 from dofview.rendering import Renderer, get_backend
-from dofview.rendering.base import check_deep
 from dofview.rendering.progressive import render_lens_samples
 from dofview.scene import ColourSpace, GaussianScene
 from dofview.tonemap import Tonemap
@@ -106,13 +105,10 @@ def render_deep(scene: GaussianScene, camera: Camera, lens: Lens = Lens(1.0, 0.0
                 raster: str = "auto") -> DeepFrame:
     """The deep image of the view :func:`render` renders with the same arguments: each pixel's
     splats front to back as samples (see :mod:`dofview.deep`); ``image.flatten()`` is
-    :func:`render`'s RGBA and ``image.save_deep_exr(path)`` writes it. A pinhole, or the per-splat
-    depth of field (``settings.dof="splat"``): the sliced mode with an aperture is refused.
-
-    Raises:
-        DofviewError: the sliced depth of field with an aperture.
+    :func:`render`'s RGBA and ``image.save_deep_exr(path)`` writes it. With the sliced depth of
+    field (the default) and an aperture, the samples are the blurred layers over their depth ranges
+    (rendering/deep_sliced.py).
     """
-    check_deep(settings, lens)
     renderer = get_backend(raster, scene)
     try:
         image = renderer.deep(camera, lens, settings, deep)
@@ -237,7 +233,6 @@ def save_render(renderer: Renderer, camera: Camera, lens: Lens, tm: Tonemap, set
     if deep is not None:
         if lens_samples:
             raise DofviewError("--deep cannot be refined with --lens-samples: the deep image is one pass")
-        check_deep(settings, lens)
     if lens_samples:
         frame = render_lens_samples(renderer, camera, lens, settings, lens_samples)
         header = {"dofview:lens_samples": lens_samples, **(header or {})}

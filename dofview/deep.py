@@ -21,9 +21,9 @@ light; the difference lives in the pixels partly covered in front of the element
 (docs/COMPOSITING.md gives it measured). A linear (HDR) scene has no such difference.
 
 The data type is the same whether the samples are splat groups (the pinhole, the per-splat
-depth-of-field mode) or, later, the sliced mode's blurred depth layers: each layer a sample over
-its Z … ZBack range, telescoped the same way through the layers' front-to-back composite (E and
-T after each layer, in the space the layers are composited in).
+depth-of-field mode) or the sliced mode's blurred depth layers (rendering/deep_sliced.py): each
+layer a sample over its Z … ZBack range, telescoped the same way through the layers' front-to-back
+composite (E and T after each layer, in the space the layers are composited in).
 """
 
 from __future__ import annotations

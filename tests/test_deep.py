@@ -283,16 +283,6 @@ def test_a_view_of_nothing_has_no_samples(backend):
     assert image.samples == 0 and image.counts.shape == (24, 32) and not image.flatten().any()
 
 
-def test_the_sliced_depth_of_field_is_refused_not_made_a_pinhole(backend):
-    renderer = backend(random_scene())
-    try:
-        with pytest.raises(DofviewError, match="--deep needs a pinhole"):
-            renderer.deep(CAM, Lens(5.0, 30.0))
-        renderer.deep(CAM, Lens(5.0, 0.0))  # the default sliced mode at A = 0 is the pinhole
-    finally:
-        renderer.release()
-
-
 # ---- colour space: telescoped samples ----------------------------------------------------------------
 def _two_layers(colour_space: str) -> tuple[GaussianScene, GaussianScene]:
     """Semi-transparent blobs around z = 4 in front of a denser cloud around z = 8 (and the front alone)."""
@@ -395,8 +385,7 @@ def test_render_deep_api():
     scene = random_scene(300)
     image = render_deep(scene, CAM, raster="compute")
     assert image.samples and json.loads(image.meta["dofview:deep"])["cap"] == DeepSettings().cap
-    with pytest.raises(DofviewError, match="pinhole"):
-        render_deep(scene, CAM, Lens(5.0, 10.0))
+    assert render_deep(scene, CAM, Lens(5.0, 10.0)).samples  # the sliced depth of field: tests/test_deep_sliced.py
 
 
 # ---- the command line -------------------------------------------------------------------------------------
@@ -419,7 +408,6 @@ def test_render_writes_the_deep_exr_beside_the_flat_one(tmp_path, capsys):
     (["--deep", "{tmp}/d.exr", "--deep-tolerance", "0"], "--deep-tolerance must be > 0"),
     (["--deep", "{tmp}/d.exr", "--deep-tolerance", "-0.5"], "--deep-tolerance must be > 0"),
     (["--deep", "{tmp}/d.exr", "--deep-cap", "0"], "--deep-cap must be ≥ 1"),
-    (["--deep", "{tmp}/d.exr", "--aperture", "20"], "--deep needs a pinhole"),
     (["--deep", "{tmp}/f.exr"], "another file than -o"),
     (["--deep", "{tmp}/d.exr", "--lens-samples", "2"], "--lens-samples"),
     (["--deep", "{tmp}/d.exr", "--frames", "2", "--focus", "2:4", "-o", "{tmp}/f_%04d.exr"],

@@ -1,7 +1,7 @@
 """Deep output measured (issue 29, docs/BENCHMARKS.md "Deep output", docs/COMPOSITING.md).
 
     python -m dofview.bench.deep SCENE[:EYE:TARGET[:UP]] SCENE@CAMERAS.json … [--width 480] [--raster compute]
-                                 [--tolerance 0.003,0.01,0.03] [--colour-space linear]
+                                 [--tolerance 0.003,0.01,0.03] [--colour-space linear] [--aperture 20]
 
 For each scene (framed automatically, from EYE=x,y,z to TARGET=x,y,z with world UP (default
 0,-1,0) and a 70° field of view, or the first view of a cameras.json) and each tolerance, in
@@ -11,6 +11,8 @@ the deep pass's time over the flat render's, flatten(deep) against the flat EXR,
 each sample decoded on its own (the alternative dofview.deep explains away), and a CG card
 inserted at a depth between two layers (:func:`gap_depth`), merged in deep and flattened,
 against a render of the scene with the card added as Gaussians. Prints a markdown table.
+``--aperture A`` (as ``dofview render``'s, px at an 800 px wide frame): the default sliced depth of
+field focused at the median Z of the pinhole frame's covered pixels instead of the pinhole (no card).
 """
 
 from __future__ import annotations
@@ -108,20 +110,25 @@ def decoded_per_sample(image: DeepFrame) -> DeepFrame:
 
 
 def measure(scene: GaussianScene, camera: Camera, raster: str, deep: DeepSettings, folder: Path,
-            repeats: int = 3) -> dict[str, float]:
+            repeats: int = 3, aperture: float = 0.0) -> dict[str, float]:
     """One scene, view and tolerance: the figures of the module docstring (times: the median of
-    ``repeats`` runs of each, flat and deep taken in turn, after one unmeasured run of each)."""
+    ``repeats`` runs of each, flat and deep taken in turn, after one unmeasured run of each);
+    ``aperture`` > 0: the sliced depth of field's, A = ``aperture`` px at an 800 px wide frame."""
     renderer = get_backend(raster, scene)
-    pinhole, settings = Lens(1.0, 0.0), RenderSettings()
-    header = exr_header(camera, pinhole, Tonemap(), settings, scene.colour_space, "scene")
+    lens, settings = Lens(1.0, 0.0), RenderSettings()
+    if aperture > 0:
+        frame = renderer.render(camera, lens, settings)
+        covered = frame.depth[frame.rgba[..., 3] > 0.5]
+        lens = Lens(float(np.median(covered)) if covered.size else 1.0, aperture * camera.width / 800.0)
+    header = exr_header(camera, lens, Tonemap(), settings, scene.colour_space, "scene")
     flat_path, deep_path = folder / "flat.exr", folder / "deep.exr"
     times: dict[str, list[float]] = {"render": [], "deep": [], "write": [], "write_deep": []}
     try:
         for run in range(repeats + 1):
             t0 = time.perf_counter()
-            frame = renderer.render(camera, pinhole, settings)
+            frame = renderer.render(camera, lens, settings)
             t1 = time.perf_counter()
-            image = renderer.deep(camera, pinhole, settings, deep)
+            image = renderer.deep(camera, lens, settings, deep)
             t2 = time.perf_counter()
             frame.meta = header
             frame.save_exr(flat_path)
@@ -145,7 +152,9 @@ def measure(scene: GaussianScene, camera: Camera, raster: str, deep: DeepSetting
            "flatten_db": psnr(DeepFrame.load(deep_path).flatten(), frame.rgba, peak)}
     encoded = scene.colour_space == "srgb"
     out["per_sample_db"] = psnr(decoded_per_sample(image).flatten(), frame.rgba, peak) if encoded else math.nan
-    out["card_db"], out["card_depth"] = card_insertion(scene, camera, raster, image)
+    out["card_db"], out["card_depth"] = card_insertion(scene, camera, raster, image) if aperture == 0 else (math.nan,
+                                                                                                          math.nan)
+    out["layers"] = len(renderer.sliced_layers) if aperture > 0 else 0
     return out
 
 
@@ -191,6 +200,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--tolerance", default="0.01", help="comma-separated relative tolerances")
     p.add_argument("--colour-space", choices=("srgb", "linear"), help="read the scenes as this (default: as they say)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs of each variant (the median is taken)")
+    p.add_argument("--aperture", type=float, default=0.0, help="the sliced depth of field's aperture (px at 800 px)")
     args = p.parse_args(argv)
     print("| scene | tolerance | samples/px mean (covered) | p99 | max | deep MB/MP (flat) | write ÷ flat | "
           "deep pass ÷ flat render | flatten dB | per-sample decode dB | card dB (depth) |")
@@ -199,8 +209,9 @@ def main(argv: list[str] | None = None) -> None:
         for spec in args.scenes:
             scene, camera, name = _view(spec, args.width, args.colour_space)
             for tol in (float(t) for t in args.tolerance.split(",")):
-                m = measure(scene, camera, args.raster, DeepSettings(tol), Path(tmp), args.repeats)
-                print(f"| {name} | {tol:g} | {m['mean']:.2f} ({m['mean_covered']:.2f}) | {m['p99']:.0f} | {m['max']} | "
+                m = measure(scene, camera, args.raster, DeepSettings(tol), Path(tmp), args.repeats, args.aperture)
+                label = f"{name} ({m['layers']} layers)" if args.aperture else name
+                print(f"| {label} | {tol:g} | {m['mean']:.2f} ({m['mean_covered']:.2f}) | {m['p99']:.0f} | {m['max']} | "
                       f"{m['mb_per_mp']:.1f} ({m['flat_mb_per_mp']:.1f}) | {m['write_ratio']:.2f} | "
                       f"{m['render_ratio']:.2f} | {m['flatten_db']:.1f} | {m['per_sample_db']:.1f} | "
                       f"{m['card_db']:.1f} ({m['card_depth']:.3g}) |", flush=True)

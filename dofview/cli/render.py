@@ -39,7 +39,7 @@ def add_deep_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--deep", type=Path, metavar="OUT.exr",
                    help="also write an OpenEXR deep image: per pixel, the splats front to back as samples with R, G, "
                         "B, A (linear, premultiplied), Z and ZBack (camera depth); flattened, it is the -o image. "
-                        "A pinhole (--aperture 0) or --dof splat; numbered like -o in a sequence")
+                        "With the sliced depth of field, the blurred layers are the samples; numbered like -o in a sequence")
     g.add_argument("--deep-tolerance", type=number(0, None, lo_open=True, what="--deep-tolerance"),
                    default=DEFAULT_TOLERANCE, metavar="REL",
                    help=f"merge a pixel's splats into one sample while their depth is within this fraction of the "

@@ -357,18 +357,44 @@ class Renderer(ABC):
              deep: DeepSettings = DeepSettings()) -> DeepFrame:
         """The deep image of what :meth:`render` draws with the same arguments: each pixel's splats
         front to back as deep samples (dofview.deep: merged within ``deep.tolerance``, at most
-        ``deep.cap``), found and walked on the GPU by the backend (:meth:`_deep`) and read back.
-        Flattening it gives :meth:`render`'s image (tests/test_deep.py: ≥ 50 dB). The pinhole and the
-        per-splat depth of field (``settings.dof == "splat"``) only, for now (:func:`check_deep`).
-
-        Raises:
-            DofviewError: the sliced depth of field with an aperture.
-        """
-        check_deep(settings, lens)
+        ``deep.cap``), found and walked on the GPU by the backend (:meth:`_deep`) and read back;
+        with the sliced depth of field and an aperture, the blurred layers as samples over their
+        depth ranges, read back as the frame is drawn (rendering/deep_sliced.py; the frame stays in
+        the targets, :meth:`read` gives it). Flattening it gives :meth:`render`'s image
+        (tests/test_deep.py, tests/test_deep_sliced.py: ≥ 50 dB)."""
         self._targets(camera.width, camera.height)
         self.sort(camera)
-        counts, colour, depth = self._deep(camera, lens, settings, deep, self.encoded_scene and not settings.blend_linear)
+        encoded = self.encoded_scene and not settings.blend_linear
+        if settings.dof == "sliced" and lens.aperture > 0:
+            image = self._sliced_deep(camera, lens, settings, deep, encoded)
+            if image is not None:
+                return image
+        counts, colour, depth = self._deep(camera, lens, settings, deep, encoded)
         return DeepFrame(counts, colour, depth)
+
+    def _sliced_deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
+                     encoded: bool) -> DeepFrame | None:
+        """The sliced mode's deep image, drawn with a capture of its layers (None where its plan
+        was the pinhole's: every Gaussian in focus, drawn unblurred)."""
+        from dofview.rendering.deep_sliced import SliceCapture, layer_depths
+        from dofview.rendering.sliced import SlicedDof
+
+        if self._sliced is None:
+            self._sliced = SlicedDof(self)
+        sliced = self._sliced
+        capture = SliceCapture(camera.width, camera.height, lambda: sliced.guard)
+        self._sliced.capture = capture
+        try:
+            self.draw(camera, lens, settings)
+        finally:
+            self._sliced.capture = None
+        layers = self._sliced.layers
+        if len(layers) == 1 and not layers[0].lensed and layers[0].radius == 0.0:
+            return None
+        w, h = self._size
+        resolved = np.frombuffer(self.colour_tex.read(), np.float32).reshape(h, w, 4)[::-1]
+        depths = layer_depths(layers, self.front_to_back(), self.scene.means, camera, settings.near)
+        return capture.deep(resolved, depths, deep, encoded)
 
     @abstractmethod
     def _deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
@@ -416,15 +442,3 @@ class Renderer(ABC):
         if self._size is not None:
             for obj in (self.fbo, self.colour_tex, self.depth_tex, self.display_fbo, self._display_rb):
                 obj.release()
-
-
-def check_deep(settings: RenderSettings, lens: Lens) -> None:
-    """Refuse a deep image the renderer cannot make yet: the sliced depth of field's blurred layers
-    (the default mode with an aperture) are not deep samples so far.
-
-    Raises:
-        DofviewError: one line saying what works instead.
-    """
-    if settings.dof == "sliced" and lens.aperture > 0:
-        raise DofviewError("--deep needs a pinhole (--aperture 0) or the per-splat depth of field (--dof splat): "
-                           "the sliced depth of field's layers are not written as deep samples yet")

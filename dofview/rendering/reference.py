@@ -9,7 +9,7 @@ and the depth order is an exact float64 stable sort of the means' camera depths.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TypeVar
 
 import numpy as np
@@ -30,6 +30,7 @@ from dofview.lens import (
     kernel_shape,
     normalise_opacity,
 )
+from dofview.rendering.deep_sliced import SliceCapture, layer_depths
 from dofview.rendering.slices import (
     Aperture,
     LensCell,
@@ -300,6 +301,43 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
     frame's τ (the huge-CoC front and back layers with the lens and ``settings``), then blurred and
     composited by slices.sliced_image with ``rule`` (default: the GL path's, slices.rule_for) and
     the kernel of ``cell`` (default: the whole aperture of ``settings``)."""
+    layers = _sliced_layers(scene, camera, lens, settings, tile, rule, cell)
+    if layers is None:  # nothing in front of the near plane
+        return render_reference(scene, camera, lens, replace(settings, dof="splat"), tile)
+    colour, sums = sliced_image(*layers.args)
+    sums[..., 2] = 0.0  # (the visibility the layers kept there)
+    return _frame(colour, sums, layers.encoded)
+
+
+def render_reference_sliced_deep(scene: GaussianScene, camera: Camera, lens: Lens,
+                                 settings: RenderSettings = RenderSettings(dof="sliced"),
+                                 deep: DeepSettings = DeepSettings(), tile: int = 16) -> DeepFrame:
+    """The twin of ``Renderer.deep`` in the sliced mode with an aperture: :func:`render_reference_sliced`'s
+    layers, their composite captured after each (slices.sliced_image's ``capture``) and made samples
+    by rendering/deep_sliced.py as the GL path's are."""
+    layers = _sliced_layers(scene, camera, lens, settings, tile, None, None)
+    w, h = camera.width, camera.height
+    if layers is None:
+        return DeepFrame(np.zeros((h, w), np.int64), np.zeros((0, 4)), np.zeros((0, 2)))
+    capture = SliceCapture(w, h, layers.args[5])
+    colour, _ = sliced_image(*layers.args, capture=capture.whole)
+    depths = layer_depths(layers.args[1], layers.order, scene.means, camera, settings.near)
+    return capture.deep(colour, depths, deep, layers.encoded)
+
+
+@dataclass
+class _SlicedLayers:
+    """The layers :func:`render_reference_sliced` blends: ``args`` slices.sliced_image's (layers,
+    plan, lens, rule, cell, guard, edges), ``order`` the draw order they cut, ``encoded`` the blend space."""
+
+    args: tuple
+    order: np.ndarray
+    encoded: bool
+
+
+def _sliced_layers(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSettings, tile: int,
+                   rule: SliceRule | None, cell: LensCell | None) -> _SlicedLayers | None:
+    """The sliced mode's layers as the CPU blends them (None: nothing in front of the near plane)."""
     rule = rule or rule_for(settings.blades)
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
     order = np.argsort(z, kind="stable")
@@ -307,9 +345,8 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
     frame = plan_frame(scene, scene.scales.max(axis=1), order, camera, lens, settings.near, rule,
                        math.sqrt(cell.share))  # as the GL path plans it
     per_splat = replace(settings, dof="splat")
-    encoded = scene.colour_space == "srgb" and not settings.blend_linear
-    if not frame.layers:  # nothing in front of the near plane
-        return render_reference(scene, camera, lens, per_splat, tile)
+    if not frame.layers:
+        return None
     plan, guard = frame.layers, frame.guard
     guarded = camera.guarded(guard)
     layers = []
@@ -321,6 +358,5 @@ def render_reference_sliced(scene: GaussianScene, camera: Camera, lens: Lens,
         blend[outside] = 0.0
         sums[outside] = 0.0
         layers.append((blend, sums))
-    colour, sums = sliced_image(layers, plan, lens, rule, cell, guard, frame.edges)
-    sums[..., 2] = 0.0  # (the visibility the layers kept there)
-    return _frame(colour, sums, encoded)
+    encoded = scene.colour_space == "srgb" and not settings.blend_linear
+    return _SlicedLayers((layers, plan, lens, rule, cell, guard, frame.edges), order, encoded)

@@ -147,6 +147,9 @@ class SlicedDof:
         self._planner: GpuLayerPlan | None = None  # made by the first draw with an aperture
         self.layers: list[Layer] = []
         """The layers of the last draw (Renderer.sliced_layers)."""
+        self.capture = None
+        """Set by the deep image (rendering/deep_sliced.py, a SliceCapture): told where each layer
+        was composited, to read it back; the draw itself is unchanged."""
 
     # ---- targets -------------------------------------------------------------------------------
     def _texture(self, size: tuple[int, int], components: int = 4) -> moderngl.Texture:
@@ -243,7 +246,7 @@ class SlicedDof:
                   count and r.counts_per_range)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
-        for layer, box, sides in zip(plan.layers, plan.windows, plan.edges):
+        for index, (layer, box, sides) in enumerate(zip(plan.layers, plan.windows, plan.edges)):
             for step in (1 << k for k in range(1, layer.scale.bit_length())):
                 self._level(step)  # the levels the layer is averaged through
             level = self._level(layer.scale)
@@ -266,13 +269,17 @@ class SlicedDof:
             if level.run is None:
                 self._gather_layer(level, self.frame_fbo, out, reach, sides)
             else:
-                if not run:
+                fresh = not run
+                if fresh:
                     level.run.clear(0.0, 0.0, 0.0, 0.0)
                     run.extend([level, None])
                 self._gather_layer(level, level.run, out, reach, sides)
                 # the run's reach at full resolution, a block more for the bilinear upsampling
                 run[1] = _union(run[1], _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s,
                                                      (out[3] + 1) * s), frame))
+            if self.capture is not None:
+                into = self.frame_fbo if level.run is None else level.run
+                self.capture.layer(index, into, out, s, level.run is not None and fresh)
         if run:
             self._end_run(run)
         prog, vao = self._resolve

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -720,7 +721,8 @@ def resolve(over: np.ndarray, visible: np.ndarray) -> np.ndarray:
 
 def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer], lens: Lens,
                  rule: SliceRule = SliceRule(), cell: LensCell | None = None,
-                 guard: int = 0, edges: list[Edges] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 guard: int = 0, edges: list[Edges] | None = None,
+                 capture: Callable[[int, np.ndarray], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The depth-of-field image from the layers of ``plan`` as blended, front to back: per layer
     (colour (H, W, 4) premultiplied RGBA *in the blend space*, depth sums (H, W, 4) (Σw·z, Σw/z,
     0, Σw)), image orientation (rows downwards), blurred by the kernel of ``cell`` (default: the
@@ -728,7 +730,9 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
     every side (:func:`guard_band`), which the result leaves out; the gather repeats each layer's
     edges as ``edges`` (:func:`layer_edges`; default: every side) says. Returns the colour
     (H − 2·guard, W − 2·guard, 4) float64 in the blend space and the depth sums alike of the
-    pinhole (the layers composited unblurred)."""
+    pinhole (the layers composited unblurred). ``capture``: called after each layer with its index
+    and the frame's "over" so far (H, W, 4) float64, GL orientation (a reduced layer's: the frame
+    before its run, over the run so far upsampled), the deep image's twin (rendering/deep_sliced.py)."""
     cell = cell or Aperture().whole()
     h, w = layers[0][0].shape[:2]
     over, visible = np.zeros((h, w, 4)), np.zeros((h, w))
@@ -743,7 +747,7 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             visible += upsample(r_vis, s, h, w)
             run.clear()
 
-    for (colour, depth_sums), layer, sides in zip(layers, plan, edges or [(True,) * 4] * len(plan)):
+    for index, ((colour, depth_sums), layer, sides) in enumerate(zip(layers, plan, edges or [(True,) * 4] * len(plan))):
         taps = cell.taps(0.0 if layer.lensed else layer.radius / layer.scale)
         a, b = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64), acc_depth,
                        lens, layer, rule, cell, taps)
@@ -752,6 +756,8 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             end_run()
             over += (1.0 - over[..., 3:4]) * blurred
             visible += vis
+            if capture is not None:
+                capture(index, over)
             continue
         if run and run[0] != layer.scale:
             end_run()
@@ -759,6 +765,8 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             run.extend([layer.scale, np.zeros_like(blurred), np.zeros_like(vis)])
         run[1] += (1.0 - run[1][..., 3:4]) * blurred
         run[2] += vis
+        if capture is not None:
+            capture(index, over + (1.0 - over[..., 3:4]) * upsample(run[1], layer.scale, h, w))
     end_run()
     inner = (slice(guard, h - guard), slice(guard, w - guard))
     return resolve(over, visible)[::-1][inner], acc_depth[::-1][inner]
