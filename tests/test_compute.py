@@ -2,6 +2,7 @@
 and its own stages: samples and a real scene, tile-boundary cases (a splat on a tile corner, one
 larger than the screen, > 65k splats in one tile), depth slices, refusals, the CLI."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ from dofview.rendering.compute import PER_GAUSSIAN_BYTES, ComputeBackend
 from dofview.rendering.gpu_sort import require_compute
 from dofview.rendering.quad import QuadBackend
 from dofview.rendering.reference import project, render_reference
+from dofview.rendering.slices import SLICE_RULE
 from dofview.scene import GaussianScene
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
@@ -105,6 +107,7 @@ def test_draw_count_and_memory():
     # sliced: the compute backend counts the scene as the pinhole projects it, the quads each range
     # as drawn, where a splat of a lensed (huge-CoC) layer may fall below tau once spread by the lens
     lens = Lens(4.5, 300.0)
+    c.slice_rule = q.slice_rule = replace(SLICE_RULE, huge=0.25)  # (the default has no splat beyond the frame here)
     c.draw(CAM, lens, count=True)
     q.draw(CAM, lens, count=True)
     lensed = sum(layer.end - layer.first for layer in q._sliced.layers if layer.lensed)

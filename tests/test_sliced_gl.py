@@ -75,8 +75,8 @@ def test_sliced_matches_the_cpu_reference(backend, path):
 
 @pytest.mark.parametrize("backend", ["quad", "compute"])
 def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
-    """Splats blurred beyond a quarter of the frame (SliceRule.huge: 40 px at 160 px wide) are drawn
-    by the per-splat method as a front and a back layer: two_planes's floaters in front."""
+    """Splats blurred beyond the frame (SliceRule.huge: 160 px at 160 px wide) are drawn by the
+    per-splat method as a front and a back layer: two_planes's floaters in front."""
     scene = load_scene(TWO_PLANES, progress=False)
     cam, lens = _view(scene, 16.0)
     r = get_backend(backend, scene)
@@ -198,10 +198,12 @@ def test_a_frame_filling_near_wall_keeps_its_blurred_coverage():
 def test_floaters_at_the_lens_do_not_fog_the_frame(backend):
     """30 small floaters (σ 0.004, opacity 0.5) 0.08–0.3 units from the lens in front of a plane in
     focus at 3, 80 × 60: their CoC runs to 73 and 146 px, and through the lens they all but vanish.
-    Beyond a quarter of the frame (SliceRule.huge) they are drawn per splat, spread over their
-    CoC as the lens spreads them, instead of leaving discs or a veil: within 0.04 of the 48-sample
-    accumulation everywhere (the pinhole: 0.32; measured 0.034) and ≥ 40 dB (measured 41.6 dB at
-    4 px)."""
+    Sliced (at 4 px all of them: the frame is 80 px) or drawn per splat beyond the frame
+    (SliceRule.huge: 8 of them at 8 px), each is spread over its own CoC as the lens spreads it,
+    instead of leaving discs or a veil: within 0.03 of the 48-sample accumulation everywhere (the
+    pinhole: 0.32; measured 0.027, within the 48 samples' own noise: 0.015 / 0.016 against 64) and
+    ≥ 45 dB (measured 51.3 / 51.0 dB against 64 samples; with a quarter of the frame as the
+    threshold, every floater drawn per splat, 41.8 / 48.9)."""
     parts = Parts.empty()
     add_panel(parts, 2, 3.0, {0: (-2.5, 2.5), 1: (-2.0, 2.0)}, (0.3, 0.5, 0.8), spacing=0.05)
     rng = np.random.default_rng(3)
@@ -217,11 +219,10 @@ def test_floaters_at_the_lens_do_not_fog_the_frame(backend):
             lens = Lens(3.0, 2 * blur / (1 / 1.0 - 1 / 3.0))
             truth = make_references(r, cam, lens, RenderSettings(), 48, False, lambda: None).physical
             sliced = r.render(cam, lens, SLICED)
-            front = r.sliced_layers[0]
-            assert front.lensed and front.end - front.first >= 27  # the floaters beyond 20 px of CoC, drawn per splat
+            assert r.sliced_layers[0].lensed == (blur == 8.0)  # the floaters beyond 80 px of CoC, per splat
             assert np.abs(pin.rgba - truth.rgba).max() > 0.3  # (what the test tells apart)
-            assert np.abs(sliced.rgba - truth.rgba).max() < 0.04
-            assert psnr(sliced.rgba, truth.rgba) >= 40.0
+            assert np.abs(sliced.rgba - truth.rgba).max() < 0.03
+            assert psnr(sliced.rgba, truth.rgba) >= 45.0
     finally:
         r.release()
 
@@ -241,7 +242,7 @@ def test_a_cluster_cut_by_the_frame_border_is_blurred_from_its_guard_band(backen
     scene = parts.build("srgb", "cluster")
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 80, 60, 70.0)
     lens = Lens(3.0, 2 * 40.0 / (1 / 0.3 - 1 / 3.0))
-    sliced_all = replace(SLICE_RULE, huge=math.inf)  # the guard band of a sliced layer (at 80 px wide the default draws 40 px per splat)
+    sliced_all = replace(SLICE_RULE, huge=math.inf)  # the guard band of a sliced layer, every splat sliced
     r = get_backend(backend, scene)
     try:
         truth = make_references(r, cam, lens, RenderSettings(), 64, False, lambda: None).physical
@@ -260,14 +261,12 @@ def test_a_cluster_cut_by_the_frame_border_is_blurred_from_its_guard_band(backen
 def test_a_bush_at_the_lens_is_carried_by_the_refinement(backend):
     """300 leaves 0.12–0.45 units from the lens (CoC 48–96 px against an 80 × 60 frame) over the
     upper left, before a wall in focus at 3: the case no single pass gets right. Through the lens
-    the leaves hide each other; blurred as independent layers (every splat sliced) or as
-    independent splats (the per-splat anchors, and the default, which draws splats blurred beyond
-    a quarter of the frame per splat) they over-cover: measured against the 64-sample lens at 4 and
-    8 px, the default 21.0 / 18.6 dB, every splat sliced 21.5 / 18.4, the best anchor 22.6 / 21.7,
-    the pinhole 22.8 / 19.9. The refinement's passes share lens positions across the leaves:
-    stage 4 is 28.8 / 25.5 dB (≥ 3 dB over the pinhole and every anchor asserted), and the
-    default's single pass is the per-splat image of the leaves (within 0.5 dB of the anchor at
-    the default k = 1/4 asserted)."""
+    the leaves hide each other; blurred as independent layers or as independent splats (the
+    per-splat anchors; the default draws the splats blurred beyond the frame per splat) they
+    over-cover: measured against the 64-sample lens at 4 and 8 px, the default 21.5 / 18.0 dB,
+    with a quarter of the frame as the threshold 21.0 / 18.6, the best anchor 22.6 / 21.7, the
+    pinhole 22.8 / 19.9. The refinement's passes share lens positions across the leaves: stage 4
+    is 29.2 / 25.4 dB (≥ 3 dB over the pinhole, every anchor and the single pass asserted)."""
     parts = Parts.empty()
     add_panel(parts, 2, 3.0, {0: (-2.5, 2.5), 1: (-2.0, 2.0)}, (0.8, 0.75, 0.3), spacing=0.05)
     rng = np.random.default_rng(5)
@@ -283,23 +282,25 @@ def test_a_bush_at_the_lens_is_carried_by_the_refinement(backend):
             lens = Lens(3.0, 2 * blur / (1 / 1.0 - 1 / 3.0))
             truth = make_references(r, cam, lens, RenderSettings(), 64, False, lambda: None).physical
             sliced = r.render(cam, lens, SLICED)
-            assert r.sliced_layers[0].lensed
             anchors = [psnr(r.render(cam, lens, replace(ANCHOR, k=k)).rgba, truth.rgba) for k in (1 / 9, 1 / 4, 1.0)]
             stage4 = render_lens_samples(r, cam, lens, SLICED, 4)
             assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens).rgba) >= MIN_PSNR
-            assert abs(psnr(sliced.rgba, truth.rgba) - anchors[1]) <= 0.5
-            assert psnr(stage4.rgba, truth.rgba) >= max(psnr(pinhole.rgba, truth.rgba), *anchors) + 3.0
+            single = psnr(sliced.rgba, truth.rgba)
+            assert psnr(stage4.rgba, truth.rgba) >= max(psnr(pinhole.rgba, truth.rgba), single, *anchors) + 3.0
     finally:
         r.release()
 
 
-def test_floaters_before_a_slanted_floor_leave_no_discs():
+def test_floaters_drawn_per_splat_before_a_slanted_floor_leave_no_discs():
     """20 floaters 0.1–0.3 units from the lens over a floor crossing many layers (160 × 120, CoC
     of the floaters up to 124 px). In the pinhole each hides the floor under it, but through the
     lens it hides nothing: sliced, the resolve fills the floor's cuts between layers only halfway
-    under each and every floater leaves a disc of seams; drawn per splat beyond a quarter of the
-    frame (SliceRule.huge), they spread thin over the floor as the lens spreads them: the 48-sample
-    lens, 36.2 dB measured (≥ 35 asserted), 33.4 with every splat sliced."""
+    under each and every floater leaves a disc of seams (33.4 dB against the 48-sample lens: the
+    default, whose threshold is the frame, slices them); drawn per splat (SliceRule.huge a quarter
+    of the frame), they spread thin over the floor as the lens spreads them: 36.2 dB measured
+    (≥ 35 and ≥ 2 dB over every splat sliced asserted). The default keeps the frame as its
+    threshold for the frame-filling near wall, which drawn per splat fogs (docs/BENCHMARKS.md,
+    "Depth of field in places")."""
     floor, cam, lens = receding_floor(160, 120, 10.0)
     rng = np.random.default_rng(4)
     d = rng.uniform(0.1, 0.3, 20)
@@ -311,13 +312,16 @@ def test_floaters_before_a_slanted_floor_leave_no_discs():
     scene = GaussianScene(*(np.concatenate([getattr(floor, f), getattr(floaters, f)])
                             for f in ("means", "quats", "scales", "opacities", "sh_dc")),
                           colour_space=floor.colour_space, name="floor and floaters")
+    quarter = replace(SLICE_RULE, huge=0.25)
     r = get_backend("quad", scene)
     try:
         truth = make_references(r, cam, lens, RenderSettings(), 48, False, lambda: None).physical
+        r.slice_rule = quarter
         sliced = r.render(cam, lens, SLICED)
+        assert r.sliced_layers[0].lensed
     finally:
         r.release()
-    assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens).rgba) >= MIN_PSNR
+    assert psnr(sliced.rgba, render_reference_sliced(scene, cam, lens, rule=quarter).rgba) >= MIN_PSNR
     all_sliced = render_reference_sliced(scene, cam, lens, rule=replace(SLICE_RULE, huge=math.inf))
     assert psnr(sliced.rgba, truth.rgba) >= 35.0
     assert psnr(sliced.rgba, truth.rgba) >= psnr(all_sliced.rgba, truth.rgba) + 2.0

@@ -54,8 +54,8 @@ from dofview.rendering.slices import LayerStats, SliceRule
 from dofview.rendering.uniforms import set_projection_uniforms
 
 MAX_EDGES = 256
-"""Most slices a frame's plan holds (the default rule: growth 1.15 up to a quarter of the frame in
-px of the kernel's blur, ~66 slices a side for a 16384 px frame refined with 256 lens cells; a rule
+"""Most slices a frame's plan holds (the default rule: growth 1.15 up to the frame's larger side in
+px of the kernel's blur, ~75 slices a side for a 16384 px frame refined with 256 lens cells; a rule
 without a huge-CoC threshold on CoCs beyond ~10⁷ px asks for more and gets a clear error)."""
 STATS_ITEMS = 16
 """Places one thread of glsl/plan_stats.comp reduces (ITEMS there)."""

@@ -83,7 +83,11 @@ class SliceRule:
         growth: each layer farther from focus is this factor wider than the one before (≥ 1):
             uniform in 1/z near focus, a relative step where the blur is large.
         huge: |c|, as a fraction of the frame's larger side, from which splats leave the layers
-            for the per-splat front and back layers (inf keeps every splat in a layer).
+            for the per-splat front and back layers (inf keeps every splat in a layer). The
+            whole frame (1): sliced, such splats veil a room (a grazing wall beside the lens);
+            drawn per splat, a frame-filling wall at the lens turns to fog, as energy
+            normalisation spreads its opaque splats thin (at a quarter of the frame a wall with
+            half the frame of blur did; docs/BENCHMARKS.md, "Depth of field in places").
         limit: largest blur radius px gathered at full resolution; a layer blurred further
             blurs at the 1/2ᵏ resolution that brings its smallest radius to ≤ limit.
         spread: β, the variance (px², per axis, per s² − 1) that the box average and the bilinear
@@ -95,7 +99,7 @@ class SliceRule:
 
     width: float = 1.0
     growth: float = 1.15
-    huge: float = 0.25
+    huge: float = 1.0
     limit: float = 3.0
     spread: float = 1.0 / 6.0
     guard: float = 0.125
