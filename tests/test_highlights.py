@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dofview.bench.metrics import psnr
+from dofview.bench.metrics import edge_width, psnr, radial_profile
 from dofview.bench.primitives import Parts, add_panel
 from dofview.bench.synth import single_gaussian
 from dofview.camera import look_at
@@ -46,24 +46,6 @@ def _point(colour_space: str = "linear", z: float = 2.0, x: float = 0.0):
 def _light(rgba: np.ndarray) -> np.ndarray:
     """(H, W) float64 the largest linear channel."""
     return rgba[..., :3].max(axis=-1).astype(np.float64)
-
-
-def _profile(img: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """The radial profile of ``img`` (H, W) about its centroid in ½ px rings out to 2·``radius``,
-    over its mean within ½·radius: (ring radii, values)."""
-    yy, xx = np.mgrid[:img.shape[0], :img.shape[1]] + 0.5
-    cy, cx = (img * yy).sum() / img.sum(), (img * xx).sum() / img.sum()
-    ring = np.minimum((np.hypot(yy - cy, xx - cx) / 0.5).astype(int), int(4 * radius))
-    sums, counts = np.bincount(ring.ravel(), img.ravel())[:-1], np.bincount(ring.ravel())[:-1]
-    r = ((np.arange(len(sums)) + 0.5) * 0.5)[counts > 0]
-    prof = sums[counts > 0] / counts[counts > 0]
-    return r, prof / prof[r < 0.5 * radius].mean()
-
-
-def _edge(img: np.ndarray, radius: float) -> float:
-    """Width px of the disc's edge: where its radial profile falls from 90 % to 10 %."""
-    r, q = _profile(img, radius)
-    return float(r[np.nonzero(q >= 0.1)[0].max()] - r[np.nonzero(q >= 0.9)[0].max()])
 
 
 def _thin_lens(r, cam, lens, blades: int = 0, samples: int = 1024) -> np.ndarray:
@@ -105,11 +87,11 @@ def test_a_bright_points_bokeh_has_the_lenss_edge(backend, space, truths):
     finally:
         r.release()
     truth = _light(truths[space])
-    edge, lens_edge = _edge(_light(sliced), BLUR), _edge(truth, BLUR)
+    edge, lens_edge = edge_width(_light(sliced), BLUR), edge_width(truth, BLUR)
     assert edge <= 1.5 * lens_edge, (edge, lens_edge)
-    assert _edge(_light(before), BLUR) > 2.0 * lens_edge  # what the sprites change
-    r_s, q_s = _profile(_light(sliced), BLUR)
-    r_t, q_t = _profile(truth, BLUR)
+    assert edge_width(_light(before), BLUR) > 2.0 * lens_edge  # what the sprites change
+    r_s, q_s = radial_profile(_light(sliced), BLUR)
+    r_t, q_t = radial_profile(truth, BLUR)
     half = lambda r, q: r[np.nonzero(q >= 0.5)[0].max()]  # noqa: E731
     assert abs(half(r_s, q_s) - half(r_t, q_t)) <= 1.0  # the disc's radius, the lens's
     if space == "linear":
@@ -175,12 +157,12 @@ def test_refinement_stage_8_fills_the_disc_without_copies(backend, truths):
         return core.std() / core.mean()
 
     assert core_spread(staged) < 0.02 < core_spread(before)
-    rr, q = _profile(staged, BLUR)
+    rr, q = radial_profile(staged, BLUR)
     inner = q[(rr > 2.0) & (rr < 0.75 * BLUR)]
     assert inner.max() - inner.min() < 0.05  # flat: no ring of copies
     peak = truth.max()
     assert psnr(staged, truth, peak) >= psnr(before, truth, peak) + 6.0
-    assert _edge(staged, BLUR) <= 1.5 * _edge(truth, BLUR)
+    assert edge_width(staged, BLUR) <= 1.5 * edge_width(truth, BLUR)
 
 
 @pytest.mark.parametrize("backend", ["quad", "compute"])
@@ -226,6 +208,9 @@ def _lights_before_a_wall(colour_space: str):
 @pytest.mark.parametrize("backend", ["quad", "compute"])
 @pytest.mark.parametrize("space", ["linear", "srgb"])
 def test_sprites_match_the_cpu_twin(backend, space):
+    """Points before a wall, several layers with sprites and layers of a level behind them: the GL
+    frame is the CPU twin's (slices.sliced_image: highlights, draw_sprites, a run of one layer) to
+    ≥ 40 dB, and differs from the frame without sprites by more than 1 % of its peak."""
     scene = _lights_before_a_wall(space)
     cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 128, 96, 60.0)
     lens = Lens(1.2, 60.0)
@@ -294,6 +279,8 @@ def test_the_lamps_bulb_is_a_smooth_disc_and_keeps_its_light():
 
 
 def test_highlight_share_picks_points_and_bright_rims_not_even_surfaces():
+    """slices.highlight_share: a lone point wholly, a dim one and an even surface (with a pixel a
+    little brighter than it) not at all; an HDR disc's pixels, rim included, wholly."""
     rule = SLICE_RULE
     level = lambda img, s: img if s == 1 else level(slices.reduce2(img), s // 2)  # noqa: E731
     img = np.zeros((32, 32, 4))
@@ -316,6 +303,7 @@ def test_highlight_share_picks_points_and_bright_rims_not_even_surfaces():
 
 
 def test_highlight_rule_refuses_nonsense():
+    """SliceRule's highlight thresholds must be finite and > 0, its sprite cap a fraction in [0, 1]."""
     for bad in ({"bright": 0.0}, {"excess": math.nan}, {"dim": -1.0}, {"sprites": 2.0}, {"sprites": -0.1}):
         with pytest.raises(DofviewError):
             SliceRule(**bad)

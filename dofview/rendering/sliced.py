@@ -11,9 +11,9 @@ clamp). Front to back, each layer is blended by the backend as a pinhole with th
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
    accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
    the layer's visible coverage beside them;
-2. slice_reduce.frag averages it 2 × 2 down to its level 1/s, clearing the slice target on the
-   way (a full-resolution layer is cleared after its prepare), and slice_prepare.frag gives each
+2. slice_reduce.frag averages it 2 × 2 down to its level 1/s and slice_prepare.frag gives each
    texel its signed blur (the CoC of its mean inverse depth) and divides it by the kernel's N;
+   the slice target is cleared after the prepare, which reads it at full resolution for step 4;
 3. slice_gather.frag spreads every texel over the kernel at its own blur (slice_kernel.glsl: the
    aperture, or a lens cell of progressive refinement), blended front to back into the frame's
    accumulators ("over" colour, summed visible coverage), or for a reduced layer into its run's

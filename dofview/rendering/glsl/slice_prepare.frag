@@ -92,6 +92,12 @@ void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
     }
     float mean = total / max(count, 1.0);
     float kb = u_bright * mean;
+    // Light is ≥ 0 (project.glsl), so no pixel of the block is brighter than s² times the texel
+    // (its weight in the 2 × 2 averages is ≥ 1/s²): where that is at most what gives a share of 0
+    // (≤ dim, or ≤ both B·bright and B + excess), no pixel is read at full resolution (a margin
+    // for rounding). This skips the block on all but the few texels that may hold a highlight.
+    float none_below = max(u_dim, kb > 0.0 ? min(kb, mean + u_excess) : 0.0);
+    if (brightness(colour) * float(u_scale * u_scale) <= 0.999 * none_below) return;
     ivec2 full = textureSize(u_full_colour, 0);
     ivec2 lo = p * u_scale, hi = min(lo + u_scale, full);
     vec4 gone = vec4(0.0), gone_depth = vec4(0.0);
