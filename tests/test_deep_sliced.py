@@ -132,8 +132,9 @@ def test_sliced_deep_matches_the_cpu_twin(backend, colour_space):
     """Against rendering.reference.render_reference_sliced_deep (the CPU's float64 layers, blurred
     and composited by slices.sliced_image, captured the same way): 11 layers here, reduced ones
     among them (runs), the same sample counts, and the samples in front of every depth flatten
-    alike (≥ 70 dB; measured 90–100 dB, as the flat frames agree at 91–93 dB); all of them to each
-    side's own flat frame (≥ 50 dB)."""
+    alike (≥ 60 dB; measured 64–66 dB, as the flat frames agree at 66 dB with the highlight
+    sprites, whose float32 sums differ from the twin's float64 ones; 90–100 dB before them); all
+    of them to each side's own flat frame (≥ 50 dB)."""
     scene = random_scene(800, seed=6, colour_space=colour_space)
     scene.means[:, 2] = np.where(np.arange(800) % 2, 3.5, 7.0) + 0.8 * (scene.means[:, 2] - 5.0)
     camera, lens = look_at([0, 0, 0], [0, 0, 5], 64, 48, 60), Lens(7.0, 80.0)
@@ -159,4 +160,4 @@ def test_sliced_deep_matches_the_cpu_twin(backend, colour_space):
                          image.rgba[near], image.depth[near]).flatten()
 
     for depth in (3.0, 4.5, 6.0, 7.5, 20.0):
-        assert _db(in_front(gpu, depth), in_front(twin, depth)) >= 70.0, depth
+        assert _db(in_front(gpu, depth), in_front(twin, depth)) >= 60.0, depth

@@ -1,4 +1,5 @@
-"""Image error measures for the benchmark: PSNR, SSIM (Wang et al. 2004) and log-radiance error.
+"""Image error measures for the benchmark: PSNR, SSIM (Wang et al. 2004) and log-radiance error,
+and the edge width of a bokeh disc.
 
 PSNR and SSIM compare display images (tonemapped, values in [0, 1]); the log-radiance error
 compares linear HDR images, where a display image would clip the bright parts away.
@@ -73,3 +74,25 @@ def log_radiance_error(a: np.ndarray, b: np.ndarray, floor: float = 1e-3) -> flo
     lb = np.asarray(b, np.float64)[..., :3] @ LUMINANCE
     d = np.log2(np.maximum(la, 0.0) + floor) - np.log2(np.maximum(lb, 0.0) + floor)
     return float(np.sqrt(np.mean(d * d)))
+
+
+def radial_profile(img: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """The radial profile of a bokeh disc ``img`` (H, W, light ≥ 0) about its light's centroid, in
+    ½ px rings out to 2·``radius`` (px, the disc's expected radius), over its mean within
+    ½·radius: (ring radii px, values) of the rings that hold a pixel centre."""
+    yy, xx = np.mgrid[:img.shape[0], :img.shape[1]] + 0.5
+    cy, cx = (img * yy).sum() / img.sum(), (img * xx).sum() / img.sum()
+    ring = np.minimum((np.hypot(yy - cy, xx - cx) / 0.5).astype(int), int(4 * radius))
+    # the last ring gathers everything beyond 2·radius: left out
+    sums, counts = np.bincount(ring.ravel(), img.ravel())[:-1], np.bincount(ring.ravel())[:-1]
+    r = ((np.arange(len(sums)) + 0.5) * 0.5)[counts > 0]
+    prof = sums[counts > 0] / counts[counts > 0]
+    return r, prof / prof[r < 0.5 * radius].mean()
+
+
+def edge_width(img: np.ndarray, radius: float) -> float:
+    """Width px of a bokeh disc's edge (``img`` (H, W) its light, ``radius`` px its expected
+    radius): where its :func:`radial_profile` falls from 90 % to 10 % (the outermost rings at
+    or above each), a lens's sharp rim a few px, a blob's soft one tens."""
+    r, q = radial_profile(img, radius)
+    return float(r[np.nonzero(q >= 0.1)[0].max()] - r[np.nonzero(q >= 0.9)[0].max()])

@@ -29,7 +29,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -56,16 +56,17 @@ PINHOLE = RenderSettings(dof="splat")  # at A = 0: one splatting pass with the d
 
 def parse_rule(text: str) -> SliceRule:
     """A SliceRule from ``KEY=V[,KEY=V]`` (fields of SliceRule changed from the default rule)."""
-    fields = {}
+    values = {}
     for part in text.split(","):
         key, _, value = part.partition("=")
-        fields[key.strip()] = float(value)
-    return replace(SLICE_RULE, **fields)
+        values[key.strip()] = float(value)
+    return replace(SLICE_RULE, **values)
 
 
 def rule_name(rule: SliceRule) -> str:
-    changed = [f"{k}={getattr(rule, k):g}" for k in ("width", "growth", "huge", "limit", "spread", "guard", "snap")
-               if getattr(rule, k) != getattr(SLICE_RULE, k)]
+    """'sliced', with the fields of ``rule`` that differ from the default rule."""
+    changed = [f"{f.name}={getattr(rule, f.name):g}" for f in fields(SliceRule)
+               if getattr(rule, f.name) != getattr(SLICE_RULE, f.name)]
     return "sliced" + (f" ({', '.join(changed)})" if changed else "")
 
 

@@ -11,14 +11,21 @@ clamp). Front to back, each layer is blended by the backend as a pinhole with th
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
    accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
    the layer's visible coverage beside them;
-2. slice_reduce.frag averages it 2 × 2 down to its level 1/s, clearing the slice target on the
-   way (a full-resolution layer is cleared after its prepare), and slice_prepare.frag gives each
+2. slice_reduce.frag averages it 2 × 2 down to its level 1/s and slice_prepare.frag gives each
    texel its signed blur (the CoC of its mean inverse depth) and divides it by the kernel's N;
+   the slice target is cleared after the prepare, which reads it at full resolution for step 4;
 3. slice_gather.frag spreads every texel over the kernel at its own blur (slice_kernel.glsl: the
    aperture, or a lens cell of progressive refinement), blended front to back into the frame's
    accumulators ("over" colour, summed visible coverage), or for a reduced layer into its run's
    (the consecutive layers of one level), which slice_upsample.frag composites into the frame's
    once the run ends;
+4. a reduced layer's highlights (slices.highlights): slice_prepare.frag appends each pixel of the
+   layer's blocks whose brightness stands out of its neighbourhood to a sprite list (an atomic
+   count, at most SliceRule.sprites of the frame's pixels; the rest stay in the gather) and takes
+   that light out of its texel; slice_sprite.vert/.frag draw them as instanced quads, indirectly
+   from the count the GPU wrote (no read-back), each the gather's kernel at full resolution at
+   the pixel's own CoC, into sprite targets that slice_upsample.frag adds to the layer's image.
+   Such a layer is a run of its own, so that the layers behind it are hidden by its sprites too;
 
 and slice_resolve.frag writes the frame into the renderer's targets: "over", scaled up to the
 visible coverage where a cut between layers left it short, and the accumulated depth sums. The
@@ -28,12 +35,13 @@ A = 0 there is one layer, not blurred: the pinhole frame, drawn straight into th
 
 Only the pixels a layer's Gaussians can reach (:func:`screen_boxes`) and its blur around them are
 processed. GPU memory (:attr:`SlicedDof.gpu_bytes`), per pixel of the guarded image: at full
-resolution the slice colour and depth sums, the two accumulators, the depth accumulator and the
-prepared layer (RGBA32F ×6 and RG32F: 104 B), and per reduced level s the layer averaged down,
-prepared, and a run's accumulators (88/s² B): ≤ 134 B in all besides the renderer's own targets
-(≈ 134 MB per megapixel of frame without a band; the widest band, an eighth of the frame's larger
-side on every side rounded up to 32 px, makes the image about 2× the frame's pixels: 266 MB per
-megapixel of frame measured at 640×360).
+resolution the slice colour and depth sums, the two accumulators, the depth accumulator, the
+sprite targets and the prepared layer (RGBA32F ×7, R32F and RG32F: 124 B), and per reduced level s
+the layer averaged down, prepared, and a run's accumulators (88/s² B): ≤ 154 B in all besides the
+renderer's own targets and the sprite list (32 B a sprite: 0.64 B per pixel of frame) (≈ 155 MB
+per megapixel of frame without a band; the widest band, an eighth of the frame's larger side on
+every side rounded up to 32 px, makes the image about 2× the frame's pixels: 266 MB per megapixel
+of frame measured at 640×360 before the sprite targets, which add 20 B per pixel of that image).
 """
 
 from __future__ import annotations
@@ -63,6 +71,7 @@ from dofview.rendering.slices import (
     frame_plan,
     pinhole_plan,
     rule_for,
+    sprite_cap,
 )
 
 MAX_TAPS = 256
@@ -70,6 +79,10 @@ MAX_TAPS = 256
 largest radius at a level is the rule's limit + 2, 8 with blades)."""
 MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
+SPRITE_HEADER = 16
+"""Bytes before the sprite list's records (the frame's count of sprites asked for, padded)."""
+SPRITE_BYTES = 32
+"""Bytes of one sprite: its colour and (x, y, ρ, visible), two vec4 (slice_prepare.frag)."""
 
 
 @functools.lru_cache(maxsize=512)  # 32 KB each: a refinement stage of 256 lens cells at two ranges
@@ -135,6 +148,12 @@ class SlicedDof:
         self._linear = ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
         self._prepare = program("slice_prepare.frag")
         self._gather = program("slice_gather.frag")
+        defines = {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES}
+        sprite = ctx.program(vertex_shader=load_shader("slice_sprite.vert", defines),
+                             fragment_shader=load_shader("slice_sprite.frag", defines))
+        self._sprite = sprite, ctx.vertex_array(sprite, [])
+        self._sprite_list = ctx.buffer(reserve=SPRITE_HEADER)  # slice_prepare.frag's Sprites: sized per frame
+        self._sprite_draw = ctx.buffer(reserve=16)  # a layer's indirect draw of its sprites
         self._upsample = program("slice_upsample.frag")
         self._resolve = program("slice_resolve.frag")
         self._size: tuple[int, int] | None = None
@@ -167,12 +186,15 @@ class SlicedDof:
         size = (width, height)
         self.slice_colour, self.slice_depth, self.over, self.visible, self.acc_depth = (
             self._texture(size) for _ in range(5))
+        self.sprite_colour, self.sprite_visible = self._texture(size), self._texture(size, 1)
         fb = self.ctx.framebuffer
         self.slice_fbo = fb(color_attachments=[self.slice_colour, self.slice_depth])
         self.frame_fbo = fb(color_attachments=[self.over, self.visible])
         self.acc_fbo = fb(color_attachments=[self.acc_depth])
+        self.sprite_fbo = fb(color_attachments=[self.sprite_colour, self.sprite_visible])
         self.output_fbo = fb(color_attachments=[self.r.colour_tex, self.r.depth_tex])
         self.slice_fbo.clear(0.0, 0.0, 0.0, 0.0)  # then kept empty: each layer's prepare clears what it reads
+        self.sprite_fbo.clear(0.0, 0.0, 0.0, 0.0)  # likewise: each run's upsample clears what it read
         self._size, self._key = size, key
 
     def _level(self, scale: int) -> _Level:
@@ -198,7 +220,7 @@ class SlicedDof:
         if self._size is None:
             return 0
         w, h = self._size
-        own = 5 * 16 * w * h
+        own = (5 * 16 + 16 + 4) * w * h + self._sprite_list.size + self._sprite_draw.size
         for level in self._levels.values():
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
@@ -238,6 +260,8 @@ class SlicedDof:
         frame = (self.guard, self.guard, w - self.guard, h - self.guard)
         self._clear(self.frame_fbo, frame)
         self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
+        cap = sprite_cap(rule, w - 2 * self.guard, h - 2 * self.guard)
+        self._sprites_for(cap)
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
         # the huge-CoC front and back layers, drawn blurred, see the lens cell's share of the aperture
         # (counted as they are drawn where the backend counts per range; the pinhole setup's
@@ -264,7 +288,8 @@ class SlicedDof:
             taps = cell.taps(layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
-            blocks = self._prepare_layer(level, gl_box, layer, lens, rule)
+            sprites = cap > 0 and level.run is not None and not layer.lensed  # a reduced layer's highlights
+            blocks = self._prepare_layer(level, gl_box, layer, lens, rule, cap if sprites else 0)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             if level.run is None:
                 self._gather_layer(level, self.frame_fbo, out, reach, sides)
@@ -273,13 +298,29 @@ class SlicedDof:
                 if fresh:
                     level.run.clear(0.0, 0.0, 0.0, 0.0)
                     run.extend([level, None])
+                if sprites:  # each reaches its own kernel's extent beyond the layer's blocks
+                    spread = math.ceil(layer.radius * cell.reach + 1.5)
+                    lit = _intersect((blocks[0] * s - spread, blocks[1] * s - spread, blocks[2] * s + spread,
+                                      blocks[3] * s + spread), frame)
+                    if lit[2] > lit[0] and lit[3] > lit[1]:
+                        self._draw_sprites(lit)
+                        run[1] = _union(run[1], lit)
                 self._gather_layer(level, level.run, out, reach, sides)
                 # the run's reach at full resolution, a block more for the bilinear upsampling
                 run[1] = _union(run[1], _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s,
                                                      (out[3] + 1) * s), frame))
+                if sprites:
+                    # the layer is a run of its own: the layers behind it must be hidden by its
+                    # sprites' coverage too, which only the frame's accumulators hold
+                    reach_box = run[1]
+                    self._end_run(run)
             if self.capture is not None:
-                into = self.frame_fbo if level.run is None else level.run
-                self.capture.layer(index, into, out, s, level.run is not None and fresh)
+                if level.run is None:
+                    self.capture.layer(index, self.frame_fbo, out, 1, False)
+                elif sprites:  # composited with its sprites into the frame, within the run's reach
+                    self.capture.layer(index, self.frame_fbo, reach_box, 1, False)
+                else:
+                    self.capture.layer(index, level.run, out, s, fresh)
         if run:
             self._end_run(run)
         prog, vao = self._resolve
@@ -308,31 +349,35 @@ class SlicedDof:
         prog["u_taps"].value = len(taps)
 
     def _set_cell(self, cell: LensCell, radius: float) -> None:
-        """Set the gather's kernel (slice_kernel.glsl), and the tables of its N(ρ) that the prepare
-        reads (LensCell.norms) for |ρ| ≤ ``radius`` (level px: the largest blur of any layer at its
-        level), uploaded again only when the cell changes or the radius passes a quarter octave and
-        made once per cell and range (:func:`_norm_tables`)."""
+        """Set the kernel of the gather and of the sprites (slice_kernel.glsl), and the tables of its
+        N(ρ) that the prepare reads (LensCell.norms) for |ρ| ≤ ``radius`` (level px: the largest
+        blur of any layer at its level), uploaded again only when the cell changes or the radius
+        passes a quarter octave and made once per cell and range (:func:`_norm_tables`)."""
         point, planes = cell.gl()
         if len(planes) > MAX_PLANES:
             raise DofviewError(f"a lens cell of {len(planes)} edges exceeds the sliced mode's {MAX_PLANES}")
         data = np.zeros((MAX_PLANES, 4), np.float32)
         data[:len(planes), :3] = planes
-        prog = self._gather[0]
-        prog["u_point"].value = tuple(float(v) for v in point)
-        prog["u_disk"].value = cell.disk
-        prog["u_planes"].value = len(planes)
-        prog["u_plane"].write(data.tobytes())
+        for prog in (self._gather[0], self._sprite[0]):
+            prog["u_point"].value = tuple(float(v) for v in point)
+            prog["u_disk"].value = cell.disk
+            prog["u_planes"].value = len(planes)
+            prog["u_plane"].write(data.tobytes())
+        self._sprite[0]["u_reach"].value = cell.reach
         span = max(NORM_FINE, 2.0 ** (math.ceil(4.0 * math.log2(max(radius, NORM_FINE))) / 4.0))
         if self._norms_for != (cell, span):
             self._norms.write(_norm_tables(cell, span))
             self._norms_for = (cell, span)
 
-    def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule) -> Box:
+    def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule,
+                       sprites: int) -> Box:
         """The layer in the slice target, within ``box`` (GL pixels, whole blocks of the level),
         made ready for its gather at ``level`` (slices.prepare): slice_visible.comp, then
         slice_reduce.frag down to the level and slice_prepare.frag, after clearing what the last
         layer prepared there wrote (the gather reads around its blocks, where the level must be
-        empty); the slice target is cleared in ``box`` once read. Returns the level's blocks."""
+        empty); the slice target is cleared in ``box`` once read. ``sprites``: the frame's cap of
+        sprites, for which the prepare also takes the layer's highlights out into the sprite list,
+        and their count into :attr:`_sprite_draw` (0: no highlights). Returns the level's blocks."""
         s = layer.scale
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
@@ -350,21 +395,52 @@ class SlicedDof:
             self._pass(prog, vao, dest.reduced, {"u_colour": 0, "u_depth": 1}, [colour, depth], region)
             self._linear.clear(0)
             self._linear.clear(1)
-            if step == 2:
-                self._clear(self.slice_fbo, box)
             colour, depth = dest.colour, dest.depth
         self._clear(level.prepared, level.dirty)
         level.dirty = region
         prog, vao = self._prepare
+        highlights = {"u_sprites": sprites > 0}
+        if sprites > 0:  # the highlights' uniforms, and this layer's draw of none so far
+            self._sprite_draw.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
+            self._sprite_list.bind_to_storage_buffer(0)
+            self._sprite_draw.bind_to_storage_buffer(1)
+            highlights.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
+                               "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim, "u_cap": sprites})
         self._pass(prog, vao, level.prepared,
                    {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
-                    "u_rmax": layer.radius / s},
-                   [colour, depth, self._norms], region)
-        if s == 1:
-            self._clear(self.slice_fbo, box)
+                    "u_rmax": layer.radius / s, **highlights},
+                   [colour, depth, self._norms, self.slice_colour, self.slice_depth], region)
+        # (cleared only now: the highlights are taken from the full-resolution layer)
+        self._clear(self.slice_fbo, box)
         return region
+
+    def _sprites_for(self, cap: int) -> None:
+        """A sprite list for ``cap`` sprites, none of them taken yet this frame."""
+        size = SPRITE_HEADER + max(cap, 1) * SPRITE_BYTES
+        if self._sprite_list.size < size:
+            self._sprite_list.orphan(size)
+        self._sprite_list.write(np.zeros(4, np.uint32).tobytes())
+
+    def _draw_sprites(self, box: Box) -> None:
+        """The sprites the layer's prepare listed (slice_sprite.vert/.frag), drawn indirectly with
+        the count it wrote, within ``box`` (full-resolution GL pixels: their reach in the frame),
+        added into the sprite targets."""
+        self.ctx.memory_barrier()  # the prepare's list and count, for the vertex stage and the draw
+        prog, vao = self._sprite
+        self._sprite_list.bind_to_storage_buffer(0)
+        prog["u_size"].value = tuple(float(v) for v in self._size)
+        ctx = self.ctx
+        self.sprite_fbo.use()
+        ctx.viewport = (0, 0, *self._size)
+        ctx.scissor = (box[0], box[1], box[2] - box[0], box[3] - box[1])
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        ctx.blend_equation = moderngl.FUNC_ADD
+        vao.render_indirect(self._sprite_draw, moderngl.TRIANGLE_STRIP, count=1)
+        ctx.disable(moderngl.BLEND)
+        ctx.scissor = None
 
     def _run(self, shader: moderngl.ComputeShader, box: Box) -> None:
         """``shader`` over ``box`` (its u_box, 8 × 8 texels a workgroup), then a barrier."""
@@ -399,8 +475,10 @@ class SlicedDof:
         level, box = run
         if box is not None:
             prog, vao = self._upsample
-            self._pass(prog, vao, self.frame_fbo, {"u_over": 0, "u_visible": 1, "u_scale": level.scale},
-                       list(level.run.color_attachments), box, blend=True)
+            self._pass(prog, vao, self.frame_fbo,
+                       {"u_over": 0, "u_visible": 1, "u_sprites": 2, "u_sprite_visible": 3, "u_scale": level.scale},
+                       [*level.run.color_attachments, self.sprite_colour, self.sprite_visible], box, blend=True)
+            self._clear(self.sprite_fbo, box)
         run.clear()
 
     def _clear(self, fbo: moderngl.Framebuffer, box: Box | None) -> None:
@@ -433,8 +511,9 @@ class SlicedDof:
 
     def _release_targets(self) -> None:
         if self._size is not None:
-            for obj in (self.slice_fbo, self.frame_fbo, self.acc_fbo, self.output_fbo, self.slice_colour,
-                        self.slice_depth, self.over, self.visible, self.acc_depth):
+            for obj in (self.slice_fbo, self.frame_fbo, self.acc_fbo, self.sprite_fbo, self.output_fbo,
+                        self.slice_colour, self.slice_depth, self.over, self.visible, self.acc_depth,
+                        self.sprite_colour, self.sprite_visible):
                 obj.release()
         for level in self._levels.values():
             level.release()
@@ -444,9 +523,11 @@ class SlicedDof:
     def release(self) -> None:
         """Free the slice targets and programs."""
         self._release_targets()
-        for prog, vao in (self._reduce, self._prepare, self._gather, self._upsample, self._resolve):
+        for prog, vao in (self._reduce, self._prepare, self._gather, self._sprite, self._upsample, self._resolve):
             vao.release()
             prog.release()
+        self._sprite_list.release()
+        self._sprite_draw.release()
         self._visible.release()
         self._occupancy.release()
         self._linear.release()

@@ -33,6 +33,18 @@ mean inverse depth, shrunk so that the down- and upsampling's own spread is not 
 r′² = r² − 4β(s² − 1)), gathered there, and upsampled bilinearly. Consecutive layers of one
 resolution (a *run*) are composited at that resolution and upsampled once.
 
+Highlights: a small bright source reduced to a coarse level is gathered as a soft, blocky blob
+(a point 40 px out of focus got a 90→10 % edge of 27 px where the lens gives 11). So before a
+layer is reduced, each pixel whose brightness stands out of the mean of its neighbourhood at the
+level's scale (:func:`highlight_share`: a point, a small cluster, the rim of an HDR source) gives
+that share of its light, coverage and depth sums to a *sprite* (:func:`highlights`, at most
+SliceRule.sprites of the frame's pixels), drawn at full resolution with the gather's own kernel at
+the pixel's own signed CoC, normalised by the kernel's exact sum (:func:`draw_sprites`): the disk
+or polygon with the lens's edge, and a lens cell's exact shape, so refinement's cells tile the
+lens's disc instead of showing one soft copy each. A layer that may have sprites is composited on
+its own (a run of one layer, its sprites added to its upsampled image), so that the layers behind
+it are hidden by its sprites' coverage as by its gathered one.
+
 Seams: where a surface is cut between two layers, their blurred parts are complementary, and
 "over" of the two loses a(1 − b) of coverage along the cut. The sum of the blurred *visible* parts
 (each layer's coverage under the pinhole transmittance in front of it) keeps a surface whole but
@@ -95,6 +107,16 @@ class SliceRule:
         guard: the widest guard band, as a fraction of the frame's larger side (:func:`guard_band`).
         snap: how far an edge between layers may move, as a fraction of the narrower of its two
             layers, to fall into the widest gap between the splats' CoCs there (:func:`snap_edges`).
+        bright: a pixel of a reduced layer whose light (its largest channel in the blend space) is
+            more than this many times the mean of the blocks of its level around its own
+            (:func:`highlight_share`) starts to be drawn as a full-resolution sprite, wholly at
+            twice that.
+        excess: likewise for light exceeding that mean by more than this (radiance far above 1: an
+            HDR source, whose edge a coarse level would show as blocks), wholly at twice that.
+        dim: light below which a pixel is no highlight, whatever its neighbourhood (the
+            faint fringes of a thin layer), and a full one only from twice that.
+        sprites: the most sprites a frame draws, as a fraction of its pixels (0: none); the
+            highlights beyond it stay in their layer's gather.
     """
 
     width: float = 1.0
@@ -104,6 +126,10 @@ class SliceRule:
     spread: float = 1.0 / 6.0
     guard: float = 0.125
     snap: float = 0.3
+    bright: float = 8.0
+    excess: float = 1.0
+    dim: float = 0.01
+    sprites: float = 0.02
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.width) and self.width > 0):
@@ -120,6 +146,11 @@ class SliceRule:
             raise DofviewError(f"edge snap must be a fraction in [0, ½), got {self.snap}")
         if not (math.isfinite(self.guard) and self.guard >= 0.0):
             raise DofviewError(f"guard band must be a finite fraction of the frame ≥ 0, got {self.guard}")
+        for name in ("bright", "excess", "dim"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0.0):
+                raise DofviewError(f"highlight {name} threshold must be a finite number > 0, got {getattr(self, name)}")
+        if not 0.0 <= self.sprites <= 1.0:
+            raise DofviewError(f"sprite cap must be a fraction of the frame's pixels in [0, 1], got {self.sprites}")
 
 
     def scale(self, radius: float) -> int:
@@ -620,7 +651,8 @@ def from_blend_space(rgba: np.ndarray, encoded: bool) -> np.ndarray:
 
 
 def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, lens: Lens, layer: Layer,
-            rule: SliceRule, cell: LensCell, taps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            rule: SliceRule, cell: LensCell, taps: np.ndarray,
+            budget: int = 0) -> tuple[np.ndarray, np.ndarray, Sprites | None]:
     """One layer made ready for its gather at its level 1/s (slice_visible.comp, slice_reduce.frag,
     slice_prepare.frag).
 
@@ -629,9 +661,10 @@ def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, l
     to which this layer's are added under their transmittance T (in place): the pinhole's depth.
     The layer's visible coverage V·α rides along with its depth sums through the 2 × 2 averages
     (:func:`reduce2`) down to the level, V the transmittance of the layers in front, kept in the
-    accumulator's third component. Returns ``a`` (h, w, 4) the level's colour over N(ρ) =
-    Σ_taps w(d, ρ) of each texel's signed CoC ρ (level px, shrunk: see the module docstring) and
-    ``b`` (h, w, 2) (ρ, visible coverage / N(ρ))."""
+    accumulator's third component. A reduced layer's highlights (:func:`highlights`: at most
+    ``budget`` of them) leave it for sprites first. Returns ``a`` (h, w, 4) the level's colour
+    over N(ρ) = Σ_taps w(d, ρ) of each texel's signed CoC ρ (level px, shrunk: see the module
+    docstring), ``b`` (h, w, 2) (ρ, visible coverage / N(ρ)) and the sprites (None: none)."""
     trans = 1.0 - acc_depth[..., 3]
     col = np.asarray(colour, np.float64)
     visible = (1.0 - acc_depth[..., 2]) * col[..., 3]
@@ -640,6 +673,12 @@ def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, l
     dep = np.array(depth_sums, np.float64)
     dep[..., 2] = visible
     s = layer.scale
+    sprites = None
+    if s > 1 and not layer.lensed and budget > 0:
+        sprites = highlights(col, dep, lens, layer, rule, budget)
+        col = col.copy()
+        col[sprites.y, sprites.x] -= sprites.colour
+        dep[sprites.y, sprites.x] -= sprites.share[:, None] * dep[sprites.y, sprites.x]
     for _ in range(s.bit_length() - 1):
         col, dep = reduce2(col), reduce2(dep)
     if layer.lensed:
@@ -651,7 +690,104 @@ def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, l
         rho = np.where(w > 0, np.copysign(r, c), 0.0)
     rho = rho.astype(np.float32)
     norm = cell.weights(taps, rho).sum(axis=0, dtype=np.float64)
-    return col / norm[..., None], np.stack([rho, dep[..., 2] / norm], -1)
+    return col / norm[..., None], np.stack([rho, dep[..., 2] / norm], -1), sprites
+
+
+# ---- highlights: sprites at full resolution --------------------------------------------------------
+@dataclass(frozen=True)
+class Sprites:
+    """A layer's highlights, each drawn at full resolution as its own kernel instead of through the
+    layer's reduced level (where a small bright source becomes a soft, blocky blob).
+
+    Attributes:
+        x, y: (M,) int64 pixels of the layer's image, GL orientation (rows from the bottom).
+        colour: (M, 4) float64 the light each takes out of its pixel, blend-space premultiplied RGBA.
+        share: (M,) float64 the share f of its pixel's light (and depth sums) it takes.
+        rho: (M,) float32 its pixel's signed CoC px (full resolution, within the layer's radius).
+        visible: (M,) float64 its part of the pixel's visible coverage.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    colour: np.ndarray
+    share: np.ndarray
+    rho: np.ndarray
+    visible: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+
+def brightness(colour: np.ndarray) -> np.ndarray:
+    """(…) float64 the light of blend-space colours ``colour`` (…, 4) as the gather spreads it: the
+    largest channel (display-encoded for an sRGB scene, radiance for an HDR one)."""
+    return np.max(np.maximum(np.asarray(colour, np.float64)[..., :3], 0.0), axis=-1)
+
+
+def highlight_share(colour: np.ndarray, level: np.ndarray, scale: int, rule: SliceRule) -> np.ndarray:
+    """(H, W) float64 the share f of each pixel's light of a layer (``colour`` (H, W, 4),
+    blend-space, GL orientation) drawn as a sprite: its brightness L (:func:`brightness`) against
+    the mean B of the brightness of the 8 texels of ``level`` (h, w, 4: the layer averaged to
+    1/``scale``) around its own (those inside the level), the layer's light around the block the
+    level blends it with, f = max(clip(L/(bright·B) − 1), clip((L − B)/excess − 1)) ·
+    clip(L/dim − 1), each clipped to [0, 1] (SliceRule): 1 for a source within its block and
+    bright against the blocks around (a point, a small cluster, an HDR source's rim), 0 on an even
+    surface (slice_prepare.frag)."""
+    lum, lev = brightness(colour), brightness(level)
+    h, w = lev.shape
+    padded, inside = np.pad(lev, 1), np.pad(np.ones((h, w)), 1)
+    around = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
+    total = sum(padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] for dy, dx in around)
+    count = sum(inside[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] for dy, dx in around)
+    rows, cols = np.arange(lum.shape[0]) // scale, np.arange(lum.shape[1]) // scale
+    mean = (total / np.maximum(count, 1.0))[rows[:, None], cols[None, :]]
+    kb = rule.bright * mean
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(kb > 0, np.clip(lum / np.where(kb > 0, kb, 1.0) - 1.0, 0.0, 1.0), 1.0)
+    excess = np.clip((lum - mean) / rule.excess - 1.0, 0.0, 1.0)
+    return np.maximum(ratio, excess) * np.clip(lum / rule.dim - 1.0, 0.0, 1.0)
+
+
+def highlights(colour: np.ndarray, depth_sums: np.ndarray, lens: Lens, layer: Layer, rule: SliceRule,
+               budget: int) -> Sprites:
+    """The sprites of a reduced layer (``colour`` (H, W, 4) blend-space, ``depth_sums`` (H, W, 4)
+    with its visible coverage third, GL orientation): every pixel with a share
+    (:func:`highlight_share`) > 0 and blending weight, in raster order (rows from the bottom),
+    at most ``budget`` (the GPU takes them in no set order: only a frame within the cap is the
+    same on both)."""
+    s = layer.scale
+    level = colour
+    for _ in range(s.bit_length() - 1):
+        level = reduce2(level)
+    share = highlight_share(colour, level, s, rule)
+    y, x = np.nonzero((share > 0) & (depth_sums[..., 3] > 0))
+    y, x = y[:budget], x[:budget]
+    f, d = share[y, x], depth_sums[y, x]
+    c = (np.float32(0.5 * lens.aperture) * (d[:, 1] / d[:, 3] - np.float32(lens.inv_focus))).astype(np.float32)
+    rho = np.copysign(np.minimum(np.abs(c), np.float32(layer.radius)), c).astype(np.float32)
+    return Sprites(x, y, f[:, None] * colour[y, x], f, rho, f * d[:, 2])
+
+
+def sprite_cap(rule: SliceRule, width: int, height: int) -> int:
+    """The most sprites a frame of ``width`` × ``height`` pixels draws (SliceRule.sprites of them)."""
+    return int(rule.sprites * width * height)
+
+
+def draw_sprites(sprites: Sprites, cell: LensCell, h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each sprite spread at full resolution over the kernel of ``cell`` for its own signed CoC,
+    w(d, ρ)/N with N = Σ_d w(d, ρ) over every offset (so each keeps its light), into an image
+    (h, w, 4) float64 and its visible coverage (h, w), GL orientation (slice_sprite.vert/.frag)."""
+    out, vis = np.zeros((h, w, 4)), np.zeros((h, w))
+    for x, y, colour, rho, visible in zip(sprites.x, sprites.y, sprites.colour, sprites.rho, sprites.visible):
+        n = int(math.ceil(cell.reach * abs(float(rho)) + 1.5))
+        dy, dx = np.mgrid[-n:n + 1, -n:n + 1]
+        wt = cell.weights(np.stack([dx.ravel(), dy.ravel()], 1).astype(np.float32), rho).astype(np.float64)
+        wt = (wt / wt.sum()).reshape(dy.shape)
+        y0, y1, x0, x1 = max(y - n, 0), min(y + n + 1, h), max(x - n, 0), min(x + n + 1, w)
+        part = wt[y0 - (y - n):y1 - (y - n), x0 - (x - n):x1 - (x - n)]
+        out[y0:y1, x0:x1] += part[..., None] * colour
+        vis[y0:y1, x0:x1] += part * visible
+    return out, vis
 
 
 def reduce2(x: np.ndarray) -> np.ndarray:
@@ -732,29 +868,35 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
     0, Σw)), image orientation (rows downwards), blurred by the kernel of ``cell`` (default: the
     whole disk). The layers are blended over the frame and a guard band of ``guard`` pixels on
     every side (:func:`guard_band`), which the result leaves out; the gather repeats each layer's
-    edges as ``edges`` (:func:`layer_edges`; default: every side) says. Returns the colour
-    (H − 2·guard, W − 2·guard, 4) float64 in the blend space and the depth sums alike of the
-    pinhole (the layers composited unblurred). ``capture``: called after each layer with its index
-    and the frame's "over" so far (H, W, 4) float64, GL orientation (a reduced layer's: the frame
-    before its run, over the run so far upsampled), the deep image's twin (rendering/deep_sliced.py)."""
+    edges as ``edges`` (:func:`layer_edges`; default: every side) says. A reduced layer's
+    highlights are drawn as sprites (:func:`highlights`, at most SliceRule.sprites of the frame's
+    pixels), added at full resolution to its upsampled image, which is then composited on its own
+    (a run of one layer). Returns the colour (H − 2·guard, W − 2·guard, 4) float64 in the blend
+    space and the depth sums alike of the pinhole (the layers composited unblurred). ``capture``:
+    called after each layer with its index and the frame's "over" so far (H, W, 4) float64, GL
+    orientation (a reduced layer's in a run: the frame before its run, over the run so far
+    upsampled), the deep image's twin (rendering/deep_sliced.py)."""
     cell = cell or Aperture().whole()
     h, w = layers[0][0].shape[:2]
     over, visible = np.zeros((h, w, 4)), np.zeros((h, w))
     acc_depth = np.zeros((h, w, 4))
-    run: list[object] = []  # [scale, over, visible] of the run of reduced layers being composited
+    budget = cap = sprite_cap(rule, w - 2 * guard, h - 2 * guard)
+    # [scale, over, visible, sprites' colour, sprites' visible] of the run of reduced layers being
+    # composited (the sprites at full resolution)
+    run: list[object] = []
 
     def end_run() -> None:
         nonlocal over, visible
         if run:
-            s, r_over, r_vis = run
-            over += (1.0 - over[..., 3:4]) * upsample(r_over, s, h, w)
-            visible += upsample(r_vis, s, h, w)
+            s, r_over, r_vis, s_colour, s_vis = run
+            over += (1.0 - over[..., 3:4]) * (upsample(r_over, s, h, w) + s_colour)
+            visible += upsample(r_vis, s, h, w) + s_vis
             run.clear()
 
     for index, ((colour, depth_sums), layer, sides) in enumerate(zip(layers, plan, edges or [(True,) * 4] * len(plan))):
         taps = cell.taps(0.0 if layer.lensed else layer.radius / layer.scale)
-        a, b = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64), acc_depth,
-                       lens, layer, rule, cell, taps)
+        a, b, sprites = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64),
+                                acc_depth, lens, layer, rule, cell, taps, budget)
         blurred, vis = scatter(a, b, cell, taps, sides)
         if layer.scale == 1:
             end_run()
@@ -766,11 +908,20 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
         if run and run[0] != layer.scale:
             end_run()
         if not run:
-            run.extend([layer.scale, np.zeros_like(blurred), np.zeros_like(vis)])
+            run.extend([layer.scale, np.zeros_like(blurred), np.zeros_like(vis), np.zeros((h, w, 4)), np.zeros((h, w))])
+        if sprites is not None and len(sprites):
+            budget -= len(sprites)
+            s_colour, s_vis = draw_sprites(sprites, cell, h, w)
+            run[3] += s_colour
+            run[4] += s_vis
         run[1] += (1.0 - run[1][..., 3:4]) * blurred
         run[2] += vis
+        if cap > 0 and not layer.lensed:
+            # a layer that may have sprites is a run of its own: the layers behind it must be hidden
+            # by its sprites' coverage too, which only the frame's accumulators hold
+            end_run()
         if capture is not None:
-            capture(index, over + (1.0 - over[..., 3:4]) * upsample(run[1], layer.scale, h, w))
+            capture(index, over + (1.0 - over[..., 3:4]) * (upsample(run[1], layer.scale, h, w) + run[3]) if run else over)
     end_run()
     inner = (slice(guard, h - guard), slice(guard, w - guard))
     return resolve(over, visible)[::-1][inner], acc_depth[::-1][inner]

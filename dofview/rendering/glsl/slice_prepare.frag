@@ -5,6 +5,12 @@
 // u_rmax); its colour and visible coverage (slice_visible.comp) are divided by the kernel's
 // N(ρ) = Σ_taps w(d, ρ) (slice_kernel.glsl), so that the gather keeps every pixel's light,
 // interpolated in tables of it: summing the taps per texel cost half of what the gather costs.
+//
+// A reduced layer's highlights leave it first (u_sprites; slices.highlights is the twin): each
+// full-resolution pixel of the texel's block whose brightness stands out of the mean of the 8
+// texels around it (slices.highlight_share) is appended, with its share f of the pixel's light, to
+// the sprite list (at most u_cap a frame; slice_sprite.vert draws them), and that share is taken
+// out of the texel with the weight the 2 × 2 averages gave the pixel.
 
 uniform sampler2D u_colour;
 uniform sampler2D u_depth;
@@ -18,6 +24,27 @@ uniform float u_rmax;      // the layer's largest radius, level px
 uniform sampler2D u_norm;  // N(ρ) (LensCell.norms), rows: fine in front, fine behind, whole range in front, behind
 uniform float u_norm_range;  // |ρ| of the whole range's last sample
 
+uniform bool u_sprites;        // take the highlights out (a reduced layer)
+uniform sampler2D u_full_colour;  // the layer at full resolution, colour
+uniform sampler2D u_full_depth;   // and depth sums with its visible coverage third
+uniform ivec4 u_region;        // the level's texels the layer was reduced into (x0, y0, x1, y1); beyond: empty
+uniform float u_bright;        // SliceRule.bright
+uniform float u_excess;        // SliceRule.excess
+uniform float u_dim;           // SliceRule.dim
+uniform uint u_cap;            // sprites a frame
+
+layout(std430, binding = 0) buffer Sprites {
+    uint taken;       // sprites asked for this frame (those past u_cap stay in the gather)
+    uint pad[3];
+    vec4 sprite[];    // per sprite: colour (blend space, premultiplied), then (x, y, ρ, visible)
+};
+layout(std430, binding = 1) buffer Draw {  // the sprites' indirect draw: this layer's instance count
+    uint vertices;
+    uint instances;
+    uint first;
+    uint base;
+};
+
 layout(location = 0) out vec4 out_a;  // colour / N(ρ)
 layout(location = 1) out vec2 out_b;  // (ρ, visible coverage / N(ρ))
 
@@ -30,10 +57,84 @@ float kernel_norm(float rho) {
     return mix(texelFetch(u_norm, ivec2(i, row), 0).r, texelFetch(u_norm, ivec2(i + 1, row), 0).r, x - float(i));
 }
 
+// slices.brightness: the largest channel, in the blend space.
+float brightness(vec4 c) {
+    vec3 rgb = max(c.rgb, 0.0);
+    return max(rgb.r, max(rgb.g, rgb.b));
+}
+
+// The weight of full-resolution pixel q in its texel of the level: one over the texels each 2 × 2
+// average took (fewer than four where a block sticks out of the image: slices.reduce2).
+float chain_weight(ivec2 q, ivec2 size) {
+    float w = 1.0;
+    for (int step = 1; step < u_scale; step *= 2) {
+        ivec2 parent = q >> 1;
+        ivec2 count = ivec2(1) + ivec2(lessThan(2 * parent + 1, size));
+        w /= float(count.x * count.y);
+        q = parent;
+        size = (size + 1) / 2;
+    }
+    return w;
+}
+
+// The highlights of texel p's block appended as sprites, their light taken out of colour and depth.
+void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
+    ivec2 size = textureSize(u_colour, 0);
+    float total = 0.0, count = 0.0;
+    for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 q = p + ivec2(dx, dy);
+            if ((dx == 0 && dy == 0) || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            count += 1.0;
+            if (all(greaterThanEqual(q, u_region.xy)) && all(lessThan(q, u_region.zw)))
+                total += brightness(texelFetch(u_colour, q, 0));
+        }
+    }
+    float mean = total / max(count, 1.0);
+    float kb = u_bright * mean;
+    // Light is ≥ 0 (project.glsl), so no pixel of the block is brighter than s² times the texel
+    // (its weight in the 2 × 2 averages is ≥ 1/s²): where that is at most what gives a share of 0
+    // (≤ dim, or ≤ both B·bright and B + excess), no pixel is read at full resolution (a margin
+    // for rounding). This skips the block on all but the few texels that may hold a highlight.
+    float none_below = max(u_dim, kb > 0.0 ? min(kb, mean + u_excess) : 0.0);
+    if (brightness(colour) * float(u_scale * u_scale) <= 0.999 * none_below) return;
+    ivec2 full = textureSize(u_full_colour, 0);
+    ivec2 lo = p * u_scale, hi = min(lo + u_scale, full);
+    vec4 gone = vec4(0.0), gone_depth = vec4(0.0);
+    for (int y = lo.y; y < hi.y; ++y) {
+        for (int x = lo.x; x < hi.x; ++x) {
+            vec4 c = texelFetch(u_full_colour, ivec2(x, y), 0);
+            float lum = brightness(c);
+            if (lum <= u_dim) continue;
+            float ratio = kb > 0.0 ? clamp(lum / kb - 1.0, 0.0, 1.0) : 1.0;
+            float excess = clamp((lum - mean) / u_excess - 1.0, 0.0, 1.0);
+            float f = max(ratio, excess) * clamp(lum / u_dim - 1.0, 0.0, 1.0);
+            if (f <= 0.0) continue;
+            vec4 d = texelFetch(u_full_depth, ivec2(x, y), 0);
+            if (d.w <= 0.0 || atomicAdd(taken, 1u) >= u_cap) continue;
+            uint i = atomicAdd(instances, 1u);
+            float coc = 0.5 * u_aperture * (d.y / d.w - u_inv_focus);
+            float rmax = u_rmax * float(u_scale);
+            sprite[2u * i] = f * c;
+            sprite[2u * i + 1u] = vec4(float(x), float(y), coc < 0.0 ? -min(-coc, rmax) : min(coc, rmax), f * d.z);
+            float w = chain_weight(ivec2(x, y), full) * f;
+            gone += w * c;
+            gone_depth += w * d;
+        }
+    }
+    colour -= gone;
+    depth -= gone_depth;
+    if (depth.w <= 1e-6 * gone_depth.w) {  // all of it left (to rounding): an empty texel, as in the twin
+        colour = vec4(0.0);
+        depth = vec4(0.0);
+    }
+}
+
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 colour = texelFetch(u_colour, p, 0);
     vec4 depth = colour.a > 0.0 ? texelFetch(u_depth, p, 0) : vec4(0.0);
+    if (u_sprites && colour.a > 0.0) take_highlights(p, colour, depth);
     float rho = 0.0;
     if (u_blur && depth.w > 0.0) {
         float c = 0.5 * u_aperture * (depth.y / depth.w - u_inv_focus);
