@@ -69,6 +69,7 @@ from dofview.rendering.slices import (
     LensCell,
     SliceRule,
     frame_plan,
+    has_sprites,
     pinhole_plan,
     rule_for,
     sprite_cap,
@@ -261,6 +262,7 @@ class SlicedDof:
         self._clear(self.frame_fbo, frame)
         self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
         cap = sprite_cap(rule, w - 2 * self.guard, h - 2 * self.guard)
+        sprite_frame = (max(w, h) - 2 * self.guard) / math.sqrt(cell.share)  # in px of the kernel's blur
         self._sprites_for(cap)
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
         # the huge-CoC front and back layers, drawn blurred, see the lens cell's share of the aperture
@@ -288,7 +290,7 @@ class SlicedDof:
             taps = cell.taps(layer.radius / layer.scale)
             self._write_taps(taps)
             reach = int(np.abs(taps).max())
-            sprites = cap > 0 and level.run is not None and not layer.lensed  # a reduced layer's highlights
+            sprites = has_sprites(layer, rule, cap, sprite_frame)  # a reduced layer's highlights
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule, cap if sprites else 0)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             if level.run is None:

@@ -117,6 +117,11 @@ class SliceRule:
             faint fringes of a thin layer), and a full one only from twice that.
         sprites: the most sprites a frame draws, as a fraction of its pixels (0: none); the
             highlights beyond it stay in their layer's gather.
+        sprite_blur: the largest blur of a layer whose highlights become sprites, as a fraction of
+            the frame's larger side in px of the kernel's blur (:func:`has_sprites`): a sprite draws
+            its whole kernel, and a layer blurred further (a wall beside the lens) has highlights
+            by the thousand, each covering much of the frame (15.8× the pinhole frame on a corridor
+            view against 5.7× without sprites; docs/BENCHMARKS.md, "Depth of field in places").
     """
 
     width: float = 1.0
@@ -130,6 +135,7 @@ class SliceRule:
     excess: float = 1.0
     dim: float = 0.01
     sprites: float = 0.02
+    sprite_blur: float = 0.25
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.width) and self.width > 0):
@@ -151,6 +157,8 @@ class SliceRule:
                 raise DofviewError(f"highlight {name} threshold must be a finite number > 0, got {getattr(self, name)}")
         if not 0.0 <= self.sprites <= 1.0:
             raise DofviewError(f"sprite cap must be a fraction of the frame's pixels in [0, 1], got {self.sprites}")
+        if not self.sprite_blur >= 0.0:
+            raise DofviewError(f"sprite blur limit must be a fraction of the frame ≥ 0, got {self.sprite_blur}")
 
 
     def scale(self, radius: float) -> int:
@@ -768,6 +776,14 @@ def highlights(colour: np.ndarray, depth_sums: np.ndarray, lens: Lens, layer: La
     return Sprites(x, y, f[:, None] * colour[y, x], f, rho, f * d[:, 2])
 
 
+def has_sprites(layer: Layer, rule: SliceRule, cap: int, frame: float) -> bool:
+    """Whether ``layer``'s highlights may leave it as sprites: a reduced layer drawn sliced, in a
+    frame whose cap (:func:`sprite_cap`) allows any, blurred by at most SliceRule.sprite_blur of
+    ``frame`` (the frame's larger side in px of the kernel's blur, as for SliceRule.huge). Such a
+    layer is composited as a run of its own (the GL path and :func:`sliced_image` alike)."""
+    return cap > 0 and layer.scale > 1 and not layer.lensed and layer.radius <= rule.sprite_blur * frame
+
+
 def sprite_cap(rule: SliceRule, width: int, height: int) -> int:
     """The most sprites a frame of ``width`` × ``height`` pixels draws (SliceRule.sprites of them)."""
     return int(rule.sprites * width * height)
@@ -881,6 +897,7 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
     over, visible = np.zeros((h, w, 4)), np.zeros((h, w))
     acc_depth = np.zeros((h, w, 4))
     budget = cap = sprite_cap(rule, w - 2 * guard, h - 2 * guard)
+    frame = (max(w, h) - 2 * guard) / math.sqrt(cell.share)  # in px of the kernel's blur (has_sprites)
     # [scale, over, visible, sprites' colour, sprites' visible] of the run of reduced layers being
     # composited (the sprites at full resolution)
     run: list[object] = []
@@ -895,8 +912,9 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
 
     for index, ((colour, depth_sums), layer, sides) in enumerate(zip(layers, plan, edges or [(True,) * 4] * len(plan))):
         taps = cell.taps(0.0 if layer.lensed else layer.radius / layer.scale)
+        lit = has_sprites(layer, rule, cap, frame)
         a, b, sprites = prepare(np.asarray(colour[::-1], np.float64), np.asarray(depth_sums[::-1], np.float64),
-                                acc_depth, lens, layer, rule, cell, taps, budget)
+                                acc_depth, lens, layer, rule, cell, taps, budget if lit else 0)
         blurred, vis = scatter(a, b, cell, taps, sides)
         if layer.scale == 1:
             end_run()
@@ -916,7 +934,7 @@ def sliced_image(layers: list[tuple[np.ndarray, np.ndarray]], plan: list[Layer],
             run[4] += s_vis
         run[1] += (1.0 - run[1][..., 3:4]) * blurred
         run[2] += vis
-        if cap > 0 and not layer.lensed:
+        if lit:
             # a layer that may have sprites is a run of its own: the layers behind it must be hidden
             # by its sprites' coverage too, which only the frame's accumulators hold
             end_run()
