@@ -103,8 +103,13 @@ def plot(path: Path, table: dict[tuple[str, str], list[tuple[str, int, float]]],
     import matplotlib.pyplot as plt
 
     scenes = list(dict.fromkeys(s for s, _ in table))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.2 * len(scenes), 3.4), squeeze=False)
-    for ax, scene in zip(axes[0], scenes):
+    cols = min(len(scenes), 6)
+    rows_of = -(-len(scenes) // cols)
+    fig, axes = plt.subplots(rows_of, cols, figsize=(3.2 * cols, 3.0 * rows_of + 0.6), squeeze=False)
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    counts = sorted({n for rows in table.values() for _, n, _ in rows} | {1})
+    for ax, scene in zip(axes.flat, scenes):
         for (s, case), rows in table.items():
             if s != scene:
                 continue
@@ -116,11 +121,11 @@ def plot(path: Path, table: dict[tuple[str, str], list[tuple[str, int, float]]],
                     ax.axhline(p, color="black", ls=":" if case == "blur16" else (0, (1, 3)), lw=1, label=f"pinhole, {case}")
             for method, colour in (("pinhole average", "tab:red"), ("per-splat stages", "tab:green"),
                                    ("stages", "tab:blue")):
-                pts = [(n, p) for m, n, p in rows if m == method or (method == "stages" and m == "sliced")]
+                pts = sorted((n, p) for m, n, p in rows if m == method or (method == "stages" and m == "sliced"))
                 ax.plot([n for n, _ in pts], [p for _, p in pts], ls, marker="o", ms=3, color=colour,
                         label=f"{method}, {case}")
         ax.set_xscale("log", base=2)
-        ax.set_xticks((1, *COUNTS), [str(n) for n in (1, *COUNTS)])
+        ax.set_xticks(counts, [str(n) for n in counts])
         ax.set_xlabel("N (passes)")
         ax.set_title(scene, fontsize=9)
         ax.grid(alpha=0.3)
@@ -128,7 +133,7 @@ def plot(path: Path, table: dict[tuple[str, str], list[tuple[str, int, float]]],
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=6, fontsize=7, frameon=False)
     fig.suptitle(title, fontsize=9)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.tight_layout(rect=(0, 0.08 / axes.shape[0], 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
