@@ -2,11 +2,9 @@
 against the physical thin lens (pinhole images averaged over the lens disk in linear light), on
 both backends, and the refinement's convergence to it."""
 
-import numpy as np
 import pytest
 
 from dofview.bench.metrics import psnr
-from dofview.bench.sliced_study import ANCHOR
 from dofview.bench.synth import room_scene
 from dofview.bench.variants import make_references
 from dofview.camera import look_at
@@ -52,7 +50,6 @@ def test_a_room_with_a_wall_beside_the_lens_is_not_fogged(backend):
         truth = _truth(r, cam, lens, 64)
         sliced = r.render(cam, lens, SLICED)
         assert r.sliced_layers[0].lensed  # the wall at the lens, drawn per splat
-        pinhole = r.render(cam, Lens(FOCUS, 0.0), SLICED)
         anchors = [psnr(r.render(cam, lens, RenderSettings(dof="splat", k=k)).rgba, truth.rgba) for k in (1 / 9, 1 / 4, 1.0)]
     finally:
         r.release()

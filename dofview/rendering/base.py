@@ -34,7 +34,7 @@ from dofview.deep import DeepFrame, DeepSettings
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
 from dofview.lens import Lens
 from dofview.rendering.display import DisplayPass
-from dofview.errors import BackendUnavailable, DofviewError
+from dofview.errors import BackendUnavailable
 from dofview.rendering.gl import GL_REQUIRED, check_size, float32_uniform, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
 from dofview.rendering.slices import Layer, LensCell, SliceRule
@@ -89,8 +89,8 @@ class Renderer(ABC):
     """
 
     name = "base"
-    #: whether each :meth:`_splat_range` counts the Gaussians it draws (True), or the
-    #: :meth:`_prepare` counts every Gaussian of the scene it projects (False)
+    #: whether each :meth:`splat_range` counts the Gaussians it draws (True), or
+    #: :meth:`prepare_splats` counts every Gaussian of the scene it projects (False)
     counts_per_range = True
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
@@ -388,9 +388,9 @@ class Renderer(ABC):
             self.draw(camera, lens, settings)
         finally:
             self._sliced.capture = None
-        layers = self._sliced.layers
-        if len(layers) == 1 and not layers[0].lensed and layers[0].radius == 0.0:
+        if self._sliced.pinhole:
             return None
+        layers = self._sliced.layers
         w, h = self._size
         resolved = np.frombuffer(self.colour_tex.read(), np.float32).reshape(h, w, 4)[::-1]
         depths = layer_depths(layers, self.front_to_back(), self.scene.means, camera, settings.near)

@@ -167,6 +167,8 @@ class SlicedDof:
         self._planner: GpuLayerPlan | None = None  # made by the first draw with an aperture
         self.layers: list[Layer] = []
         """The layers of the last draw (Renderer.sliced_layers)."""
+        self.pinhole = False
+        """Whether the last draw's plan was the pinhole's (FramePlan.pinhole: nothing blurred)."""
         self.capture = None
         """Set by the deep image (rendering/deep_sliced.py, a SliceCapture): told where each layer
         was composited, to read it back; the draw itself is unchanged."""
@@ -246,7 +248,7 @@ class SlicedDof:
                 self._planner = GpuLayerPlan(r)
             size = math.sqrt(cell.share)
             plan = frame_plan(self._planner.measure(camera, lens, settings, rule, size), camera, rule, size)
-        self.layers, self.guard = plan.layers, plan.guard
+        self.layers, self.guard, self.pinhole = plan.layers, plan.guard, plan.pinhole
         if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
             # renderer's targets instead of through a layer target, gather and resolve at full size

@@ -60,7 +60,7 @@ many layers, and blurring each layer's pinhole image gives every slice of the wa
 width, while through the lens it is seen nearly edge-on from the lens points that carry its light
 to a pixel (a wall 3 cm beside a 7.7 cm aperture, sliced to the near plane, covers the frame ten
 times over in the image-space model where the lens gives it 23 %); no one pass can be right there,
-and the refinement is (docs/BENCHMARKS.md, "Places"). Every rule in pixels of blur holds for the
+and the refinement is (docs/BENCHMARKS.md, "Depth of field in places"). Every rule in pixels of blur holds for the
 kernel's own blur, which shrinks with a lens cell, so that every refinement stage is planned as its
 cells need and the stages converge to the lens.
 
@@ -121,7 +121,7 @@ class SliceRule:
             the frame's larger side in px of the kernel's blur (:func:`has_sprites`): a sprite draws
             its whole kernel, and a layer blurred further (a wall beside the lens) has highlights
             by the thousand, each covering much of the frame (15.8× the pinhole frame on a corridor
-            view against 5.7× without sprites; docs/BENCHMARKS.md, "Depth of field in places").
+            view without this limit, 5.5× with it; docs/BENCHMARKS.md, "Depth of field in places").
     """
 
     width: float = 1.0
@@ -287,8 +287,8 @@ def measure_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule =
     """The slots and CoC ranges (:class:`LayerStats`, without boxes) of Gaussians at camera depths
     ``depth`` (N,) float32 scene units in draw order, nearest first; those at z ≤ ``near`` (culled)
     join the layer before them. ``frame``: the frame's larger side in px of the kernel's blur
-    (px / the kernel's size, :func:`layers_of`), which SliceRule.huge is a fraction of. ``current``: the order is sorted for these depths; else it was sorted for an
-    earlier view (the viewer's background sort), is nearly sorted, and each Gaussian takes the
+    (px / the kernel's size, :func:`layers_of`), which SliceRule.huge is a fraction of.
+    ``current``: the order is sorted for these depths; else it was sorted for an earlier view (the viewer's background sort), is nearly sorted, and each Gaussian takes the
     farthest layer of those before it, so the ranges stay contiguous; its edges stay on the
     lattice (:func:`snap_edges` needs the depths sorted)."""
     depth = np.asarray(depth, np.float64)
