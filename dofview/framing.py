@@ -4,8 +4,9 @@ a set of training views.
 Without cameras a scene is framed from its opacity-weighted percentile box (floaters and
 near-transparent haze do not shrink the object to a dot), looked at slightly from above along the
 world up that :func:`guess_up` finds. A place (a room, a corridor, a flat: a floor, a level ceiling
-over it, surfaces around; :func:`find_place`) is seen from inside instead, from where a person would
-stand, at eye height, along its long way. With cameras the orbit pivot is the point nearest to all
+over it, surfaces around; or in the open air a ground with things standing around it under the sky;
+:func:`find_place`) is seen from inside instead, from where a person would stand, at eye height,
+along its long way. With cameras the orbit pivot is the point nearest to all
 their optical axes and world up is their mean up.
 """
 
@@ -50,6 +51,15 @@ MIN_CLEARANCE = 0.1  # of the room's height: the eye's least distance to a wall 
 ENCLOSED = 0.6  # a place has surfaces in at least this share of the directions from the eye (doorways,
 # windows and an open side let the others out: 0.7 in the shared corridor, kitchen and showroom)
 SPHERE_RAYS = 256  # directions sampled over the sphere for that share
+OPEN_SIDE = 120.0  # degrees: a place has no wider run of level directions that meet nothing from
+# somewhere one can stand in it (a place lying on its side has the sky for a wall; an object on the
+# ground is on one side of the eye); 0–35° in the rooms, the synthetic street and garden path
+OPEN_SKY = 0.25  # in the open air, at least this share of the directions above the eye meet nothing (31–70 %
+# in the roofless shared rooms, the synthetic garden path and street; 23 % at most inside the shared burger)
+SHEET_NEIGHBOURS = 4  # a surface's cell has at least this many occupied neighbours (of 26); for that share,
+# floaters are no walls
+OPEN_ELEVATIONS = (0.0, 10.0, 20.0)  # in the open air, the share is of level directions and these
+# elevations (degrees; the ground below and the sky above count for nothing either way)
 AZIMUTHS = 72  # horizontal rays from the eye (5° apart) for what it sees at eye height
 CANDIDATES = 16  # the clearest open spaces tried, in turn, for surfaces around them
 FAN = math.radians(30.0)  # the side looked along is the one with the longer mean reach within this of the axis
@@ -140,8 +150,8 @@ def nearest_axis(up: np.ndarray) -> str:
 
 
 def guess_up(scene: GaussianScene) -> UpGuess:
-    """Guess which world axis is up: a room's floor and ceiling, else the scene's ground, else its
-    tall axis, else the convention.
+    """Guess which world axis is up: a room's floor and ceiling, else the scene's ground, else the
+    ground of a place in the open air, else its tall axis, else the convention.
 
     0. Room. A room, a corridor, a flat has flat planes at both ends of its up axis: the floor and
        the ceiling, each ≥ :data:`ROOM_PLANE_SHARE` of the flat mass facing along the axis in its
@@ -158,9 +168,14 @@ def guess_up(scene: GaussianScene) -> UpGuess:
        flat mass (−y's counts ×1.5). A ground holds ≥ 20 % of the flat mass and ≥ 1.5× the next
        side's score, and carries the scene (:func:`_carried`); one that carries nothing is an
        object's top, the sides of a box hanging from its edges, and up points towards it.
-    2. Tall axis. Without a ground (a figure, a statue, a guitar), a box ≥ 1.5× longer along one
+    2. Open air. A roofless place (a garden path, a street, a courtyard, a room captured without
+       its ceiling) may hold as much flat mass in its walls or façades as in its ground. Each side
+       with ≥ 20 % of the flat mass and less than :data:`ROOM_PLANE_SHARE` at the other end of its
+       axis (no ceiling over it) is tried as the ground, most flat mass first: the first from which
+       :func:`find_place` finds a place in the open air is down.
+    3. Tall axis. Without a ground (a figure, a statue, a guitar), a box ≥ 1.5× longer along one
        axis than along the others stands on it; the sign is the convention's (−y, +z, +x).
-    3. Otherwise −y, the 3DGS/COLMAP convention.
+    4. Otherwise −y, the 3DGS/COLMAP convention.
     """
     if scene.count == 0:
         return UpGuess("-y", "empty scene: the 3DGS convention")
@@ -169,10 +184,13 @@ def guess_up(scene: GaussianScene) -> UpGuess:
     room = _room(scene, ends)
     if room is not None:
         return room
-    scene = sample
-    ground = _ground(scene, ends)
+    ground = _ground(sample, ends)
     if ground is not None:
         return ground
+    open_air = _open_air(scene, ends)
+    if open_air is not None:
+        return open_air
+    scene = sample
     lo, hi = robust_box(scene)
     size = hi - lo
     a = int(np.argmax(size))
@@ -189,17 +207,52 @@ def _room(scene: GaussianScene, ends: dict[str, float] | None) -> UpGuess | None
     scene's sample) and a place between them in ``scene`` (step 0 of :func:`guess_up`), or None."""
     if ends is None:
         return None
-    pairs = sorted((a for a in "xyz" if min(ends["+" + a], ends["-" + a]) >= ROOM_PLANE_SHARE),
+    ground = _open_ground(ends)
+    # with a ground open to the sky on another axis, planes at both ends of this one are walls or
+    # façades: a roofless room or a street, which the room test would take lying on its side
+    pairs = sorted((a for a in "xyz" if min(ends["+" + a], ends["-" + a]) >= ROOM_PLANE_SHARE and ground in (None, a)),
                    key=lambda a: -min(ends["+" + a], ends["-" + a]) * (CONVENTION_BONUS if a == "y" else 1.0))
     for a in pairs:
         low, high = ends["+" + a], ends["-" + a]
         label = {"y": "-y", "z": "+z"}.get(a, "+x" if low >= high else "-x")
         place = find_place(scene, axis_vector(label))
-        if place is not None:
+        if place is not None and not place.open_air and place.open_side < OPEN_SIDE:
             return UpGuess(label, f"a room: flat planes at both ends of {a} ({low:.0%} and {high:.0%} of the flat "
                                   f"mass), a level ceiling over {place.roofed:.0%} of the free floor; the floor by "
                                   "convention")
     return None
+
+
+def _open_air(scene: GaussianScene, ends: dict[str, float] | None) -> UpGuess | None:
+    """The up of a place in the open air (step 2 of :func:`guess_up`; ``ends``: :func:`_end_shares`
+    of the scene's sample), or None."""
+    if ends is None:
+        return None
+    weighted = {k: v * (CONVENTION_BONUS if k == "-y" else 1.0) for k, v in ends.items()}
+    for label in sorted(ends, key=lambda k: -weighted[k]):
+        opposite = ("+" if label[0] == "-" else "-") + label[1]
+        if ends[label] < MIN_GROUND_SHARE or ends[opposite] >= ROOM_PLANE_SHARE:
+            continue
+        place = find_place(scene, axis_vector(label))
+        if place is not None and place.open_air:
+            return UpGuess(label, f"a place in the open air: flat Gaussians lie as a ground on the "
+                                  f"{'high' if label[0] == '-' else 'low'} {label[1]} side ({ends[label]:.0%} of "
+                                  "the flat mass, nothing over it), with surfaces standing around")
+    return None
+
+
+def _open_ground(ends: dict[str, float]) -> str | None:
+    """The axis ("x", "y" or "z") of a ground with nothing over it, from :func:`_end_shares`
+    ``ends``: the ground test's winner (≥ :data:`MIN_GROUND_SHARE` of the flat mass, ≥
+    :data:`DOMINANCE` times the next side's, −y's counting ×1.5) with less than
+    :data:`ROOM_PLANE_SHARE` at the other end of its axis; None without one."""
+    weighted = {k: v * (CONVENTION_BONUS if k == "-y" else 1.0) for k, v in ends.items()}
+    best = max(weighted, key=weighted.get)
+    runner = max((k for k in ends if k != best), key=weighted.get)
+    opposite = ("+" if best[0] == "-" else "-") + best[1]
+    if ends[best] < MIN_GROUND_SHARE or weighted[best] < DOMINANCE * weighted[runner] or ends[opposite] >= ROOM_PLANE_SHARE:
+        return None
+    return best[1]
 
 
 def _end_shares(scene: GaussianScene) -> dict[str, float] | None:
@@ -270,8 +323,12 @@ def _carried(scene: GaussianScene, axis: int, face_mass: np.ndarray, rest: np.nd
     if w.sum() <= 0 or face_mass.sum() <= 0:
         return 1.0, True
     over, centred = np.ones(scene.count, bool), True
+    box_lo, box_hi = robust_box(scene)
     for b in (b for b in range(3) if b != axis):
         f_lo, f_hi = weighted_quantiles(scene.means[:, b], face_mass, [0.05, 0.95])
+        # within the scene's box: a capture's far backdrop (the street below a flat's windows) is
+        # flat and vast, and would stretch the footprint far beyond what the face carries
+        f_lo, f_hi = max(f_lo, box_lo[b]), min(f_hi, box_hi[b])
         lo, hi = f_lo + RIM * (f_hi - f_lo), f_hi - RIM * (f_hi - f_lo)
         over &= (scene.means[:, b] > lo) & (scene.means[:, b] < hi)
         centred &= bool(lo < float(w @ scene.means[:, b]) / float(w.sum()) < hi)
@@ -287,10 +344,15 @@ class Place:
     Attributes:
         eye: (3,) float64 world position of the eye, :data:`EYE_HEIGHT` of the way from floor to ceiling.
         look: (3,) float64 unit horizontal direction looked along.
-        floor, ceiling: heights of the floor and the ceiling over the free space.
-        enclosure: share of the directions from the eye (a sphere of them) that meet a surface.
+        floor, ceiling: heights of the floor and the ceiling over the free space; in the open air
+            the ground and the height of what stands around (:func:`_open_top`).
+        enclosure: share of the directions from the eye (a sphere of them; level ones and a little
+            above in the open air, :data:`OPEN_ELEVATIONS`) that meet a surface.
         roofed: share of the floor one can stand on that has the ceiling (within
-            :data:`LEVEL_TOLERANCE` of the room's height of its level) over it.
+            :data:`LEVEL_TOLERANCE` of the room's height of its level) over it (0 in the open air).
+        open_air: a place with no ceiling (a garden path, a street, a courtyard).
+        open_side: degrees, the widest run of level directions that meet nothing from the clearest
+            spot that has surfaces around it (the spot least open of those): under :data:`OPEN_SIDE` in a room.
         reason: the same, in words.
     """
 
@@ -300,6 +362,8 @@ class Place:
     ceiling: float
     enclosure: float
     roofed: float
+    open_air: bool
+    open_side: float
     reason: str
 
 
@@ -376,41 +440,91 @@ def _occupancy(scene: GaussianScene, frame: np.ndarray, stride: int) -> _Grid:
     return _Grid(cover.reshape(tuple(dims)), lo, cell, frame)
 
 
-def _levels(occ: np.ndarray) -> tuple[int, int, np.ndarray, np.ndarray, int] | str:
-    """Floor and ceiling cells (k indices along up) of the occupied cells ``occ`` (X, Y, Z) bool seen
-    from the free space, per column the first surface below and above the eye (−1 and Z where
-    none), and the eye's layer; or why there are none, in words (no ceiling over most of it).
+@dataclass(frozen=True)
+class _Levels:
+    """The heights of a place (cell indices k along up) and what the eye sees up and down there.
+
+    floor: the floor (the ground in the open air).
+    top: the ceiling in a room; in the open air the surroundings' height (:func:`_open_top`).
+    roofed: a ceiling over the free floor (a room), or none (the open air).
+    below, above: (X, Y) int per column the first surface below the eye (−1: none) and above it
+        (Z: none).
+    eye: the eye's layer.
+    """
+
+    floor: int
+    top: int
+    roofed: bool
+    below: np.ndarray
+    above: np.ndarray
+    eye: int
+
+
+def _seen(occ: np.ndarray, eye: int) -> tuple[np.ndarray, np.ndarray]:
+    """(X, Y) per column of ``occ`` (X, Y, Z) bool the first occupied layer below ``eye`` (−1: none)
+    and above it (Z: none)."""
+    nz = occ.shape[2]
+    k = np.arange(nz)
+    return (np.where(occ[:, :, :eye], k[:eye], -1).max(axis=2),
+            np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2))
+
+
+def _levels(occ: np.ndarray) -> _Levels | str:
+    """Floor and ceiling (or the open air's surroundings) of the occupied cells ``occ`` (X, Y, Z)
+    bool seen from the free space; or why there are none, in words.
 
     From a first eye level at :data:`EYE_HEIGHT` of the box, each column free there looks down and
     up. The floor is the commonest first surface below in the lowest part of those (from the 15th
     percentile up :data:`LEVEL_SPAN` of the box height: furniture tops stand higher, a glossy
     floor's reflections lie lower); the ceiling likewise from the 85th percentile down, where at
-    least :data:`ROOFED` of the columns have one. Once more from the eye those levels give."""
+    least :data:`ROOFED` of the columns have one. Once more from the eye those levels give. Where
+    the free floor has no ceiling over it the place, if it is one, is in the open air
+    (:func:`_open_top` gives its height)."""
     nz = occ.shape[2]
-    k = np.arange(nz)
     span = max(1, int(LEVEL_SPAN * nz / (1 + 2 * PLACE_PAD_UP)))
     eye = int(EYE_HEIGHT * nz)
-    for _ in range(2):
-        below = np.where(occ[:, :, :eye], k[:eye], -1).max(axis=2)
-        above = np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2)
+    for step in range(2):
+        below, above = _seen(occ, eye)
         free = ~occ[:, :, eye] & (below >= 0)
         roofed = free & (above < nz)
         if not free.any():
             return "no floor under free space"
-        if roofed.sum() < ROOFED * free.sum():
-            return f"no ceiling over the free floor (over {roofed.sum() / free.sum():.0%} of it)"
         hist = np.bincount(below[free], minlength=nz)
         q15 = int(np.searchsorted(np.cumsum(hist), 0.15 * hist.sum()))
         floor = q15 + int(np.argmax(hist[q15:q15 + span + 1]))
+        if roofed.sum() < ROOFED * free.sum():
+            if step:
+                return f"no ceiling over the free floor (over {roofed.sum() / free.sum():.0%} of it)"
+            top = _open_top(occ, floor)
+            if isinstance(top, str):
+                return f"no ceiling over the free floor (over {roofed.sum() / free.sum():.0%} of it), and {top}"
+            eye = int(round(floor + EYE_HEIGHT * (top - floor)))
+            return _Levels(floor, top, False, *_seen(occ, eye), eye)
         hist = np.bincount(above[roofed], minlength=nz + 1)
         q85 = int(np.searchsorted(np.cumsum(hist), 0.85 * hist.sum()))
         ceiling = max(q85 - span, 0) + int(np.argmax(hist[max(q85 - span, 0):q85 + 1]))
         if ceiling - floor < 4:
             return "floor and ceiling less than 4 cells apart"
         eye = int(round(floor + EYE_HEIGHT * (ceiling - floor)))
-    below = np.where(occ[:, :, :eye], k[:eye], -1).max(axis=2)
-    above = np.where(occ[:, :, eye + 1:], k[eye + 1:], nz).min(axis=2)
-    return floor, ceiling, below, above, eye
+    return _Levels(floor, ceiling, True, *_seen(occ, eye), eye)
+
+
+def _open_top(occ: np.ndarray, floor: int) -> int | str:
+    """The height (layer k) of what stands around a place in the open air (a garden path's hedges
+    and trees, a street's façades, a room's walls where the capture left out its ceiling), in
+    place of a ceiling: the median top of the columns of ``occ`` (X, Y, Z) bool that rise from the
+    ``floor`` layer (occupied from two to four layers above it: the floor's own thickness left out);
+    or why there is none, in words. The eye then stands at :data:`EYE_HEIGHT` of it, as in a room:
+    without a ceiling nothing else in the capture gives the scale of a person."""
+    nz = occ.shape[2]
+    rising = occ[:, :, min(floor + 2, nz):min(floor + 4, nz)].any(axis=2)
+    if not rising.any():
+        return "nothing stands on the ground"
+    tops = nz - 1 - np.argmax(occ[:, :, ::-1], axis=2)  # each column's highest occupied layer
+    top = int(np.median(tops[rising]))
+    if top - floor < 4:
+        return "what stands on the ground is less than 4 cells high"
+    return top
 
 
 def _clearance(blocked: np.ndarray) -> np.ndarray:
@@ -471,6 +585,17 @@ def _sealed(occupied: np.ndarray) -> np.ndarray:
     return sealed
 
 
+def _sheets(occupied: np.ndarray) -> np.ndarray:
+    """The cells of ``occupied`` (X, Y, Z) bool with at least :data:`SHEET_NEIGHBOURS` occupied
+    neighbours of their 26: surfaces, which continue into their neighbours, without the specks a
+    capture leaves in the air (a floater fills a cell or two on its own)."""
+    padded = np.pad(occupied, 1).astype(np.int16)
+    x, y, z = occupied.shape
+    count = sum(padded[1 + i:1 + i + x, 1 + j:1 + j + y, 1 + k:1 + k + z]
+                for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)) - occupied
+    return occupied & (count >= SHEET_NEIGHBOURS)
+
+
 def _sphere(n: int) -> np.ndarray:
     """(n, 3) unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
     i = np.arange(n) + 0.5
@@ -480,6 +605,29 @@ def _sphere(n: int) -> np.ndarray:
     return np.stack([r * np.cos(t), r * np.sin(t), z], axis=1)
 
 
+def _band(azimuths: int, elevations: tuple[float, ...]) -> np.ndarray:
+    """(len(elevations) · azimuths, 3) unit vectors (x, y, up) every 360°/``azimuths`` around at each
+    of ``elevations`` (degrees above the horizon)."""
+    a = np.arange(azimuths) * 2 * math.pi / azimuths
+    return np.concatenate([np.stack([np.cos(a) * math.cos(math.radians(e)), np.sin(a) * math.cos(math.radians(e)),
+                                     np.full(azimuths, math.sin(math.radians(e)))], axis=1) for e in elevations])
+
+
+def _widest_gap(met: np.ndarray) -> np.ndarray:
+    """(M,) float64 degrees: per row of ``met`` (M, K) bool (K directions evenly around a circle)
+    the widest run of directions that meet nothing, wrapping around."""
+    k = met.shape[1]
+    widest = np.zeros(len(met))
+    for i, row in enumerate(met):
+        if not row.any():
+            widest[i] = 360.0
+            continue
+        turned = np.roll(row, -int(np.argmax(row)))  # start on a met direction: no run wraps
+        runs = np.diff(np.flatnonzero(np.concatenate([turned, [True]]))) - 1
+        widest[i] = 360.0 * runs.max() / k
+    return widest
+
+
 def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
     """:func:`judge_place`'s place, or None for an object."""
     place = judge_place(scene, up)
@@ -487,8 +635,8 @@ def find_place(scene: GaussianScene, up: np.ndarray) -> Place | None:
 
 
 def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
-    """Where to stand in a scene that is a place (a room, a corridor, a flat), or why it is an object,
-    in words.
+    """Where to stand in a scene that is a place (a room, a corridor, a flat; a garden path or a
+    street in the open air), or why it is an object, in words.
 
     The scene's surfaces are voxelised in cubes (:func:`_occupancy`, up along ``up`` (3,)). A place
     has a floor under its free space and a ceiling over it (:func:`_levels`: an object has no ceiling
@@ -499,6 +647,14 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     :data:`MIN_CLEARANCE` of the room's height from any obstacle, and surfaces around it: at least
     :data:`ENCLOSED` of the directions from the eye meet one (a doorway or a window lets a few
     through). The answer comes from the first test that fails, in that order.
+
+    A place in the open air (a garden path, a street, a courtyard, a room captured without its
+    ceiling) has no ceiling over its free floor; what stands on its ground gives its height in place
+    of one (:func:`_open_top`), and the eye must stand under the open sky (nothing over its column,
+    :data:`OPEN_SKY` of the directions above it open: not inside a hollow object), with surfaces in
+    :data:`ENCLOSED` of the level directions and those up to 20° above (:data:`OPEN_ELEVATIONS`)
+    and no side open wider than :data:`OPEN_SIDE` (an object on open ground stands on one side of
+    the eye). The storey and level-ceiling tests are a room's.
 
     The eye stands where the floor is clearest (furthest from walls, furniture and floaters; the
     first of the :data:`CANDIDATES` clearest open spaces with surfaces around it), at
@@ -516,10 +672,10 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     levels = _levels(occ)
     if isinstance(levels, str):
         return levels
-    floor, ceiling, below, above, eye_k = levels
+    floor, ceiling, below, above, eye_k = levels.floor, levels.top, levels.below, levels.above, levels.eye
     height = ceiling - floor
     storey = height * (1 + 2 * PLACE_PAD_UP) / occ.shape[2]  # of the box's height
-    if storey < STOREY:
+    if levels.roofed and storey < STOREY:
         return f"floor and ceiling span {storey:.0%} of the scene's height: storeys of an object"
     tol = max(1, int(round(KNEE * height)))
     body = occ[:, :, floor + tol + 1:min(eye_k + tol + 1, occ.shape[2])].any(axis=2)
@@ -535,11 +691,17 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     level = float(np.count_nonzero(stand & (np.abs(above - ceiling) <= LEVEL_TOLERANCE * height)))
     level /= float(np.count_nonzero(stand))
     need = max(2.0, MIN_CLEARANCE * height)
-    if level < ROOFED:
+    if levels.roofed and level < ROOFED:
         return f"no level ceiling (over {level:.0%} of where one can stand)"
     if clear.max() < need:
         return f"no room to stand ({clear.max():.0f} cells from an obstacle at most, {need:.1f} needed)"
     room = stand & (clear >= need)
+    if not levels.roofed:
+        # under the open sky: a hollow object's inside (a burger's, between its bun and patties)
+        # has room and surfaces around, but a roof over most of it
+        room &= above >= occ.shape[2]
+        if not room.any():
+            return "no room to stand under the open sky"
     # the clearest places to stand, each the clearest of its open space (none within another's
     # clearance), clearest first; the eye takes the first with surfaces around it (a terrace's
     # clear strip may look out at nothing)
@@ -551,10 +713,30 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
                 break
     cells = np.array(cells)
     starts = np.column_stack([cells + 0.5, np.full(len(cells), eye_k + 0.5)])
-    _, met = _march(sealed, starts, _sphere(SPHERE_RAYS))
+    # in the open air the sky is open: what counts is what stands around, level and a little above
+    _, met = _march(sealed, starts, _sphere(SPHERE_RAYS) if levels.roofed else _band(AZIMUTHS, OPEN_ELEVATIONS))
     enclosed = met.mean(axis=1) >= ENCLOSED
     if not enclosed.any():
-        return f"no surfaces around (in {met.mean(axis=1).max():.0%} of the directions at most)"
+        around = "directions" if levels.roofed else "level directions"
+        return (f"{'' if levels.roofed else 'open to the sky, and '}no surfaces around (in "
+                f"{met.mean(axis=1).max():.0%} of the {around} at most)")
+    # a room has walls on every side; a place lying on its side (a street, or a roofless room, with
+    # a façade or a wall taken for its floor) has the sky for one of them (guess_up asks), and in the
+    # open air, an object on its ground (a table on a lawn) stands on one side of the eye only
+    gaps = np.full(len(starts), 360.0)
+    gaps[enclosed] = _widest_gap(_march(_sealed(_sheets(occ)), starts[enclosed], _band(AZIMUTHS, (0.0,)))[1])
+    if not levels.roofed:
+        enclosed &= gaps < OPEN_SIDE
+        if not enclosed.any():
+            return f"open to the sky, and open on one side ({gaps.min():.0f}° of level directions meet nothing)"
+        # and the sky over the eye: inside a hollow object the columns may be open, the dome is not
+        upward = _sphere(SPHERE_RAYS)
+        sky = np.zeros(len(starts))
+        sky[enclosed] = 1.0 - _march(sealed, starts[enclosed], upward[upward[:, 2] > 0])[1].mean(axis=1)
+        enclosed &= sky >= OPEN_SKY
+        if not enclosed.any():
+            return f"under a roof: {sky.max():.0%} of the directions above the eye meet nothing, at most"
+    open_side = float(gaps[enclosed].min())
     pick = int(np.argmax(enclosed))
     best, start, enclosure = cells[pick], starts[pick], float(met[pick].mean())
     angles = np.arange(AZIMUTHS) * 2 * math.pi / AZIMUTHS
@@ -576,10 +758,15 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     eye = grid.world(position, eye_height)
     look = axis[0] * frame[0] + axis[1] * frame[1]
     h = grid.cell
+    if levels.roofed:
+        why = (f"a place: a level ceiling {height * h:.3g} over the floor above {level:.0%} of where one can stand, "
+               f"surfaces in {enclosure:.0%} of the directions from the eye")
+    else:
+        why = (f"a place in the open air: no ceiling, what stands around {height * h:.3g} high, surfaces in "
+               f"{enclosure:.0%} of the level directions from the eye")
     return Place(eye, look / np.linalg.norm(look), float(grid.origin[2] + (floor + 0.5) * h),
-                 float(grid.origin[2] + (ceiling + 0.5) * h), enclosure, level,
-                 f"a place: a level ceiling {height * h:.3g} over the floor above {level:.0%} of where one can stand, "
-                 f"surfaces in {enclosure:.0%} of the directions from the eye")
+                 float(grid.origin[2] + (ceiling + 0.5) * h), enclosure, level if levels.roofed else 0.0,
+                 not levels.roofed, open_side, why)
 
 
 def overview_camera(scene: GaussianScene, width: int, height: int, fov_deg: float = 50.0,

@@ -3,7 +3,8 @@ column; top: the framing before issue 13, +z through the unweighted 2–98 % box
 under it: dofview.framing now, weighted box, guessed up and 20° elevation, a place seen from inside
 at eye height, issues 22 and 31), pinhole, focus auto. The scenes: those of tests/data, the
 synthetic rooms (dofview.bench.synth.room_scene, and furnished_room: a table and chairs in its
-middle, 300 floaters), and the shared places when given.
+middle, 300 floaters, with and without its ceiling), the synthetic places in the open air
+(synth.garden_path, synth.street), and the shared places when given.
 
     python scripts/framing_figure.py [--scenes tests/data] [--places ../shared/scenes]
         [--showroom showroom_l1.ply] [--out docs/images/framing_shared.png]
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dofview.bench.synth import furnished_room, room_scene
+from dofview.bench.synth import furnished_room, garden_path, room_scene, street
 from dofview.camera import framing_camera
 from dofview.framing import Place, guess_up, judge_place, overview_camera
 from dofview.io import load_scene
@@ -52,7 +53,10 @@ def scenes(args: argparse.Namespace) -> list[tuple[str, object]]:
     """(name, loader) of each scene in the figure, in column order."""
     out = [(name, lambda n=name: load_scene(args.scenes / n, progress=False)) for name in OBJECTS]
     out += [("room", room_scene), ("furnished room", lambda: furnished_room(6.0, 4.0, 2.6, doors={"-z": [(1.0, 1.9)]},
-                                                                               table=True, floaters=300))]
+                                                                               table=True, floaters=300)),
+            ("roofless room", lambda: furnished_room(6.0, 4.0, 2.6, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300,
+                                                     ceiling=False)),
+            ("garden path", garden_path), ("street", street)]
     if args.places:
         for name in ("corridor.compressed.ply", "kitchen_balcony.compressed.ply"):
             out.append((name, lambda n=name: load_scene(args.places / n, progress=False)))

@@ -10,7 +10,7 @@ import pytest
 from inria_folder import SCENES, TWO_PLANES
 
 from dofview.bench.primitives import Parts, add_panel
-from dofview.bench.synth import furnished_room, room_scene
+from dofview.bench.synth import furnished_room, garden_path, room_scene, street
 from dofview.cli import main
 from dofview.frame import Frame
 from dofview.framing import UP_AXES, axis_vector, find_place, guess_up, overview_camera, robust_box
@@ -295,3 +295,90 @@ def test_the_top_of_a_scanned_box_is_no_ground():
     assert guess.label == "-x" and "carries nothing" in guess.reason, guess.reason
     guess = guess_up(two_faces(side_at=0.35))  # the side stands over the face's middle: it is a ground
     assert guess.label == "+x" and "ground" in guess.reason, guess.reason
+
+
+# ---- issue 31: places in the open air --------------------------------------------------------------------
+def check_open_air(scene: GaussianScene, up_label: str, world: np.ndarray, *, half_width: float, top: float,
+                   length: float) -> tuple:
+    """The camera :func:`overview_camera` puts in a place in the open air made along x (world y down,
+    ground at y = 0, the way free for |z| < ``half_width``; what stands around it ``top`` high),
+    turned by ``world`` (3, 3): the up guessed, the place seen as open air, the eye on the way at
+    :data:`EYE` of ``top`` above the ground, level, upright, looking along x towards the longer free
+    way, no Gaussian at the lens. Returns the camera and its eye in the place's own frame."""
+    guess = guess_up(scene)
+    assert guess.label == up_label, guess.reason
+    up = guess.vector
+    spot = find_place(scene, up)
+    assert spot is not None and spot.open_air, "a place in the open air"
+    assert (spot.floor, spot.ceiling) == pytest.approx((0.0, top), abs=0.1 * top)
+    cam = overview_camera(scene, *SIZE, up=up)
+    eye, forward = world.T @ cam.centre, world.T @ cam.forward
+    assert abs(eye[2]) < half_width and abs(eye[0]) < length / 2  # on the way, not over a hedge or a roof
+    assert -eye[1] == pytest.approx(EYE * top, abs=0.1 * top)
+    assert cam.forward @ up == pytest.approx(0.0, abs=1e-9) and -cam.R[1] @ up == pytest.approx(1.0)
+    assert abs(forward[0]) > np.cos(np.radians(10))  # along the way
+    assert length / 2 - np.sign(forward[0]) * eye[0] > length / 2  # towards its longer free end
+    lens = np.linalg.norm(scene.means - cam.centre, axis=1) - 3 * scene.scales.max(axis=1)
+    assert lens[scene.opacities > 0.1].min() > 0.0
+    return cam, eye
+
+
+def first_frame(scene: GaussianScene, cam) -> Frame:
+    from dofview.rendering.quad import QuadBackend
+    renderer = QuadBackend(scene)
+    frame = renderer.render(cam, Lens(1.0, 0.0))
+    renderer.release()
+    return frame
+
+
+def test_a_garden_path_is_seen_from_inside_along_it():
+    """A gravel path between hedges 1.8 high, trees behind them, both ends open and no sky: no
+    ceiling, so before issue 31's open-air rule it was framed from outside as an object. Now the eye
+    stands on the path at eye height under the hedges' tops and looks down it; the first frame is
+    the path and the hedges (the sky is empty), sharp at the far end of the path."""
+    garden = garden_path()
+    cam, eye = check_open_air(garden, "-y", np.eye(3), half_width=1.0, top=1.8, length=14.0)
+    frame = first_frame(garden, cam)
+    rows = frame.alpha.mean(axis=1)
+    assert rows[SIZE[1] // 2:].mean() > 0.95  # ground and hedges fill the lower half
+    assert 0.3 < frame.alpha.mean() < 0.95  # and the sky over them is open
+    focus = auto_focus(frame)
+    assert focus is not None and focus > 3.0  # down the path, not on a hedge at the lens
+
+
+def test_a_street_is_seen_from_inside_along_it_whatever_the_up_convention():
+    """A street 12 wide between façades 10 high: its façades hold as much flat mass as its road, so
+    a façade pair was taken for a room's floor and ceiling (the street lying on its side, +z up).
+    The ground without anything over it, and a place in the open air on it, decide: −y as
+    stored, +z when the scene is turned z-up (where −y's convention bonus does not help)."""
+    scene = street()
+    check_open_air(scene, "-y", np.eye(3), half_width=4.0, top=10.0, length=40.0)
+    check_open_air(turned(scene, Z_UP), "+z", Z_UP, half_width=4.0, top=10.0, length=40.0)
+
+
+def test_a_room_without_its_ceiling_is_seen_from_inside():
+    """The furnished room captured without its ceiling (a courtyard, or a capture that never looked
+    up): its walls stand around a floor with nothing over it; the eye stands in the room at 0.55 of
+    the walls' height and looks down its length."""
+    length, width, height = 6.0, 4.0, 2.6
+    room = furnished_room(length, width, height, doors={"-z": [(1.0, 1.9)]}, table=True, floaters=300, ceiling=False)
+    guess = guess_up(room)
+    assert guess.label == "-y", guess.reason
+    assert find_place(room, guess.vector).open_air
+    check_inside(room, guess.vector, length, width, height)
+
+
+def test_an_object_on_open_ground_is_still_an_object():
+    """A statue (a 1 × 3 × 1 block) on a 20 × 20 plaza with nothing around it: a ground and
+    something standing on it, but it stands on one side of any place one could stand: seen from
+    outside."""
+    parts = Parts.empty()
+    add_panel(parts, 1, 0.0, {0: (-10.0, 10.0), 2: (-10.0, 10.0)}, (0.5, 0.5, 0.5), 0.2)
+    for axis, at in ((0, -0.5), (0, 0.5), (2, -0.5), (2, 0.5)):
+        add_panel(parts, axis, at, {1: (-3.0, 0.0), 2 - axis: (-0.5, 0.5)}, (0.8, 0.7, 0.6), 0.05)
+    statue = parts.build("srgb", "statue")
+    up = guess_up(statue).vector
+    assert find_place(statue, up) is None
+    lo, hi = robust_box(statue)
+    cam = overview_camera(statue, *SIZE, up=up)
+    assert not np.all((cam.centre > lo) & (cam.centre < hi))

@@ -614,19 +614,21 @@ def _wall(parts: Parts, axis: int, at: float, span: dict[int, tuple[float, float
 
 
 def furnished_room(length: float, width: float, height: float, *, doors: dict | None = None,
-                   table: bool = False, floaters: int = 0, seed: int = 0) -> GaussianScene:
+                   table: bool = False, floaters: int = 0, seed: int = 0, ceiling: bool = True) -> GaussianScene:
     """A place to open from inside: a room of thin Gaussians (``add_panel``, 0.1 apart), world y
     down, floor at y = 0, ceiling at y = −``height``, walls at x = ±length/2 and z = ±width/2 with
     door openings ``doors`` {"-x" | "+x" | "-z" | "+z": [(lo, hi), …]} 2.0 high. ``table``: a table
     in its middle (top 1.6 × 0.9 at 0.75 above the floor, four legs) and four chairs around it (seats
     0.44 square at 0.45, backs up to 0.9; all within x ±1.45, z ±1.05). ``floaters``: that many
     small splats (σ 0.01–0.04) scattered through the room, every third opaque (0.9), the others
-    faint, as a capture leaves them. SH degree 0, sRGB; seeded."""
+    faint, as a capture leaves them. ``ceiling``: False leaves it out (a courtyard, or a room whose
+    capture never looked up). SH degree 0, sRGB; seeded."""
     parts = Parts.empty()
     hx, hz = length / 2, width / 2
     doors = doors or {}
     add_panel(parts, 1, 0.0, {0: (-hx, hx), 2: (-hz, hz)}, (0.55, 0.45, 0.35))  # floor
-    add_panel(parts, 1, -height, {0: (-hx, hx), 2: (-hz, hz)}, (0.9, 0.9, 0.88))  # ceiling
+    if ceiling:
+        add_panel(parts, 1, -height, {0: (-hx, hx), 2: (-hz, hz)}, (0.9, 0.9, 0.88))
     for name, axis, at, span, colour in (("-x", 0, -hx, {1: (-height, 0.0), 2: (-hz, hz)}, (0.8, 0.3, 0.3)),
                                          ("+x", 0, hx, {1: (-height, 0.0), 2: (-hz, hz)}, (0.3, 0.7, 0.3)),
                                          ("-z", 2, -hz, {0: (-hx, hx), 1: (-height, 0.0)}, (0.3, 0.3, 0.8)),
@@ -649,6 +651,79 @@ def furnished_room(length: float, width: float, height: float, *, doors: dict | 
         size = rng.uniform(0.01, 0.04, (floaters, 1)) * np.ones(3)
         parts.add(means, size, rng.uniform(0.0, 1.0, (floaters, 3)), opacity)
     return parts.build("srgb", "furnished room")
+
+
+def _box(parts: Parts, lo, hi, colour, spacing: float, sides: str = "xyzXYZ") -> None:
+    """The faces of the box ``lo``–``hi`` (3,) (world y down) named in ``sides`` ("x": its low-x face,
+    "X": its high-x face, …) as panels of thin Gaussians ``spacing`` apart."""
+    for name in sides:
+        axis, end = "xyz".index(name.lower()), hi if name.isupper() else lo
+        add_panel(parts, axis, end[axis], {a: (lo[a], hi[a]) for a in range(3) if a != axis}, colour, spacing)
+
+
+def _tree(parts: Parts, x: float, z: float, height: float, crown: float, rng: np.random.Generator) -> None:
+    """A tree on the ground (y = 0): a trunk 0.3 thick up to ``height`` − ``crown``, and a crown of
+    leaves (splats σ 0.08–0.2, opaque) filling the sphere of radius ``crown`` under ``height``."""
+    _box(parts, (x - 0.15, -(height - crown), z - 0.15), (x + 0.15, 0.0, z + 0.15), (0.35, 0.25, 0.15), 0.1, "xXzZ")
+    n = int(600 * crown**2)
+    d = rng.normal(size=(n, 3))
+    d *= (crown * rng.uniform(0.6, 1.0, n) ** (1 / 3) / np.linalg.norm(d, axis=1))[:, None]
+    centre = np.array([x, -(height - crown), z])
+    green = np.array([0.2, 0.45, 0.15]) * rng.uniform(0.6, 1.2, (n, 1))
+    parts.add(centre + d, rng.uniform(0.08, 0.2, (n, 1)) * np.ones(3), green, 0.95)
+
+
+def garden_path(length: float = 14.0, width: float = 2.0, hedge: float = 1.8, seed: int = 0) -> GaussianScene:
+    """A place in the open air, to open from inside: a gravel path ``width`` wide along x (x in
+    ±length/2, |z| < width/2, ground at y = 0, world y down), lawns 2.5 wide beyond hedges 0.8 thick
+    and ``hedge`` high along both its sides (each with one gap 1.2 wide), a tree 5 high behind each
+    hedge every 4 along, a bench on one lawn; both ends of the path open, no ceiling, no sky.
+    SH degree 0, sRGB; seeded."""
+    rng = np.random.default_rng(seed)
+    parts = Parts.empty()
+    hx, hz = length / 2, width / 2
+    add_panel(parts, 1, 0.0, {0: (-hx, hx), 2: (-hz, hz)}, (0.62, 0.58, 0.5), 0.08)  # gravel
+    for side in (-1.0, 1.0):
+        inner, outer = side * hz, side * (hz + 0.8)
+        z0, z1 = sorted((outer, side * (hz + 3.3)))
+        add_panel(parts, 1, 0.0, {0: (-hx, hx), 2: (z0, z1)}, (0.25, 0.5, 0.2), 0.12)  # lawn
+        gap = 1.5 * side
+        for x0, x1 in ((-hx, gap - 0.6), (gap + 0.6, hx)):  # the hedge, with a gap in it
+            lo = (x0, -hedge, min(inner, outer))
+            hi = (x1, 0.0, max(inner, outer))
+            _box(parts, lo, hi, (0.15, 0.35, 0.12), 0.1, "xXzZy")
+        for x in np.arange(-hx + 2.0, hx, 4.0):
+            _tree(parts, x + side, side * (hz + 2.2), 5.0, 1.4, rng)
+    _box(parts, (1.0, -0.45, hz + 1.2), (2.6, 0.0, hz + 1.7), (0.5, 0.35, 0.2), 0.05, "xXzZy")  # bench
+    return parts.build("srgb", "garden path")
+
+
+def street(length: float = 40.0, width: float = 12.0, facade: float = 10.0, seed: int = 0) -> GaussianScene:
+    """A place in the open air: a street along x (x in ±length/2, ground at y = 0, world y down),
+    façades ``facade`` high at z = ±width/2 with rows of dark windows set into them and a side
+    street's opening on one side, pavements, two parked cars and lamp posts; both ends of the street
+    open, no ceiling, no sky. SH degree 0, sRGB; seeded."""
+    rng = np.random.default_rng(seed)
+    parts = Parts.empty()
+    hx, hz = length / 2, width / 2
+    add_panel(parts, 1, 0.0, {0: (-hx, hx), 2: (-hz + 2.0, hz - 2.0)}, (0.3, 0.3, 0.32), 0.2)  # road
+    for side in (-1.0, 1.0):
+        z0, z1 = sorted((side * (hz - 2.0), side * hz))
+        add_panel(parts, 1, -0.15, {0: (-hx, hx), 2: (z0, z1)}, (0.6, 0.58, 0.55), 0.2)  # pavement
+        colour = (0.75, 0.6, 0.45) if side < 0 else (0.65, 0.65, 0.7)
+        opening = (4.0, 10.0) if side > 0 else None  # a side street
+        spans = [(-hx, opening[0]), (opening[1], hx)] if opening else [(-hx, hx)]
+        for x0, x1 in spans:
+            add_panel(parts, 2, side * hz, {0: (x0, x1), 1: (-facade, 0.0)}, colour, 0.2)
+            for x in np.arange(x0 + 1.5, x1 - 1.0, 3.0):
+                for y in np.arange(2.5, facade - 1.0, 3.0):
+                    add_panel(parts, 2, side * (hz - 0.05), {0: (x, x + 1.2), 1: (-y - 1.5, -y)}, (0.08, 0.1, 0.14), 0.1)
+        for x in np.arange(-hx + 4.0, hx, 8.0):  # lamp posts at the kerb
+            _box(parts, (x - 0.06, -4.0, side * (hz - 2.3) - 0.06), (x + 0.06, -0.15, side * (hz - 2.3) + 0.06),
+                 (0.2, 0.2, 0.2), 0.05, "xXzZ")
+    for x, z in ((-6.0, -hz + 3.1), (7.0, hz - 3.1)):  # parked cars
+        _box(parts, (x - 2.1, -1.4, z - 0.9), (x + 2.1, 0.0, z + 0.9), tuple(rng.uniform(0.2, 0.8, 3)), 0.1, "xXzZy")
+    return parts.build("srgb", "street")
 
 
 def receding_floor(width: int, height: int, blur: float) -> tuple[GaussianScene, Camera, Lens]:
