@@ -3,7 +3,6 @@ samples, culling, a million-Gaussian scene headless, load memory, and the perf s
 Structure and ratios only: no wall-clock asserts."""
 
 import threading
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +20,6 @@ from dofview.rendering import base as renderer_module
 from dofview.rendering.packing import gpu_arrays
 from dofview.rendering.quad import QuadBackend
 from dofview.rendering.depth_order import camera_depths, front_to_back
-from dofview.rendering.slices import SLICE_RULE
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 
@@ -100,21 +98,16 @@ def test_chunked_upload_writes_exactly_the_packed_arrays(monkeypatch, n, degree,
 
 
 def test_hidden_gaussians_are_culled_and_change_nothing():
-    """Gaussians beside the frustum or behind the camera cost no quad and leave the image bit-identical.
-    (Without highlight sprites: this random scene asks for more than the frame's cap of them, and
-    which ones the cap keeps follows the GPU's atomic order, not the scene.)"""
+    """Gaussians beside the frustum or behind the camera cost no quad and leave the image bit-identical."""
     visible = random_scene(3000, degree=1, seed=3)
     cam = benchmark_camera(160, 90)
     lens = Lens(6.0, 60.0)
-    no_sprites = replace(SLICE_RULE, sprites=0.0)
     r = QuadBackend(visible)
-    r.slice_rule = no_sprites
     r.draw(cam, lens, count=True)
     drawn, image = r.stats.drawn, r.read().rgba
     for where in ("frustum", "behind"):
         both = _with_hidden(visible, where)
         r2 = QuadBackend(both)
-        r2.slice_rule = no_sprites
         r2.draw(cam, lens, count=True)
         assert both.count == 2 * visible.count
         assert r2.stats.drawn == drawn

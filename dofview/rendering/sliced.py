@@ -81,7 +81,8 @@ largest radius at a level is the rule's limit + 2, 8 with blades)."""
 MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
 SPRITE_HEADER = 16
-"""Bytes before the sprite list's records (the frame's count of sprites asked for, padded)."""
+"""Bytes before the sprite list's records (the frame's count of sprites drawn, the layer's count of
+highlights and whether they are drawn, padded)."""
 SPRITE_BYTES = 32
 """Bytes of one sprite: its colour and (x, y, ρ, visible), two vec4 (slice_prepare.frag)."""
 
@@ -144,6 +145,7 @@ class SlicedDof:
             return prog, ctx.vertex_array(prog, [])
 
         self._visible = compute_shader(ctx, "slice_visible.comp")
+        self._accept = compute_shader(ctx, "sprite_accept.comp")
         self._occupancy = compute_shader(ctx, "slice_occupancy.comp")
         self._reduce = program("slice_reduce.frag")
         self._linear = ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
@@ -381,7 +383,9 @@ class SlicedDof:
         layer prepared there wrote (the gather reads around its blocks, where the level must be
         empty); the slice target is cleared in ``box`` once read. ``sprites``: the frame's cap of
         sprites, for which the prepare also takes the layer's highlights out into the sprite list,
-        and their count into :attr:`_sprite_draw` (0: no highlights). Returns the level's blocks."""
+        and their count into :attr:`_sprite_draw` (0: no highlights): all of them if they fit in
+        what is left of the cap, else none (counted first, sprite_accept.comp; slices.highlights).
+        Returns the level's blocks."""
         s = layer.scale
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
@@ -403,19 +407,24 @@ class SlicedDof:
         self._clear(level.prepared, level.dirty)
         level.dirty = region
         prog, vao = self._prepare
-        highlights = {"u_sprites": sprites > 0}
+        uniforms = {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
+                    "u_blur": not layer.lensed, "u_aperture": lens.aperture,
+                    "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
+                    "u_rmax": layer.radius / s, "u_sprites": sprites > 0, "u_count": False}
+        textures = [colour, depth, self._norms, self.slice_colour, self.slice_depth]
         if sprites > 0:  # the highlights' uniforms, and this layer's draw of none so far
             self._sprite_draw.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
             self._sprite_list.bind_to_storage_buffer(0)
             self._sprite_draw.bind_to_storage_buffer(1)
-            highlights.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
-                               "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim, "u_cap": sprites})
-        self._pass(prog, vao, level.prepared,
-                   {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
-                    "u_blur": not layer.lensed, "u_aperture": lens.aperture,
-                    "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
-                    "u_rmax": layer.radius / s, **highlights},
-                   [colour, depth, self._norms, self.slice_colour, self.slice_depth], region)
+            uniforms.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
+                             "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim})
+            # counted first, then drawn all or none: the GPU's order must not choose which
+            self._pass(prog, vao, level.prepared, {**uniforms, "u_count": True}, textures, region)
+            self.ctx.memory_barrier()
+            self._accept["u_cap"].value = sprites
+            self._accept.run(1)
+            self.ctx.memory_barrier()
+        self._pass(prog, vao, level.prepared, uniforms, textures, region)
         # (cleared only now: the highlights are taken from the full-resolution layer)
         self._clear(self.slice_fbo, box)
         return region

@@ -760,16 +760,18 @@ def highlights(colour: np.ndarray, depth_sums: np.ndarray, lens: Lens, layer: La
                budget: int) -> Sprites:
     """The sprites of a reduced layer (``colour`` (H, W, 4) blend-space, ``depth_sums`` (H, W, 4)
     with its visible coverage third, GL orientation): every pixel with a share
-    (:func:`highlight_share`) > 0 and blending weight, in raster order (rows from the bottom),
-    at most ``budget`` (the GPU takes them in no set order: only a frame within the cap is the
-    same on both)."""
+    (:func:`highlight_share`) > 0 and blending weight, in raster order (rows from the bottom); none
+    if there are more than ``budget`` (what is left of the frame's cap: a layer's highlights are
+    drawn all or none, as slice_prepare.frag counts them first, so that no order of the GPU's
+    chooses among them)."""
     s = layer.scale
     level = colour
     for _ in range(s.bit_length() - 1):
         level = reduce2(level)
     share = highlight_share(colour, level, s, rule)
     y, x = np.nonzero((share > 0) & (depth_sums[..., 3] > 0))
-    y, x = y[:budget], x[:budget]
+    if len(y) > budget:
+        y, x = y[:0], x[:0]
     f, d = share[y, x], depth_sums[y, x]
     c = (np.float32(0.5 * lens.aperture) * (d[:, 1] / d[:, 3] - np.float32(lens.inv_focus))).astype(np.float32)
     rho = np.copysign(np.minimum(np.abs(c), np.float32(layer.radius)), c).astype(np.float32)

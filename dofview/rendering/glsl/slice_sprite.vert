@@ -8,8 +8,7 @@
 #include "slice_kernel.glsl"
 
 layout(std430, binding = 0) readonly buffer Sprites {
-    uint taken;
-    uint pad[3];
+    uint header[4];  // slice_prepare.frag's counts
     vec4 sprite[];  // per sprite: colour (blend space, premultiplied), then (x, y, ρ, visible)
 };
 
