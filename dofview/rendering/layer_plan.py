@@ -186,7 +186,6 @@ class GpuLayerPlan:
             "u_key_back": coc_threshold(-huge, lens, strict=True),
             "u_key_focus": coc_threshold(0.0, lens, strict=True),
             "u_width": rule.width, "u_growth": rule.growth, "u_huge": huge, "u_snap": rule.snap,
-            "u_blocks": rule.blocks, "u_limit": rule.limit, "u_size": size,
             "u_gain": max(camera.fx, camera.fy),
         }
         names = ["plan_lattice", "plan_snap", "plan_bounds", "plan_stats"]

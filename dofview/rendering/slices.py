@@ -94,11 +94,6 @@ class SliceRule:
         width: width of the layer around the focus plane, px of CoC (it spans [−width/2, width/2]).
         growth: each layer farther from focus is this factor wider than the one before (≥ 1):
             uniform in 1/z near focus, a relative step where the blur is large.
-        blocks: a layer blurred at a reduced level 1/s (its inner edge's |c| beyond ``limit``, in
-            px of the kernel's blur) is at least this many of the level's s-px blocks wide in CoC
-            (0: no floor): the level cannot resolve what a finer cut would separate (the part of a
-            farther surface a nearer one hides through part of the lens is |c₁ − c₂| px wide),
-            and every layer costs its passes (docs/BENCHMARKS.md, "Cost in rooms").
         huge: |c|, as a fraction of the frame's larger side, from which splats leave the layers
             for the per-splat front and back layers (inf keeps every splat in a layer). The
             whole frame (1): sliced, such splats veil a room (a grazing wall beside the lens);
@@ -131,7 +126,6 @@ class SliceRule:
 
     width: float = 1.0
     growth: float = 1.15
-    blocks: float = 0.0
     huge: float = 1.0
     limit: float = 3.0
     spread: float = 1.0 / 6.0
@@ -148,8 +142,6 @@ class SliceRule:
             raise DofviewError(f"slice width must be a finite number of pixels > 0, got {self.width}")
         if not (math.isfinite(self.growth) and self.growth >= 1.0):
             raise DofviewError(f"slice growth must be a finite factor ≥ 1, got {self.growth}")
-        if not (math.isfinite(self.blocks) and self.blocks >= 0.0):
-            raise DofviewError(f"layer width in blocks of its level must be a finite number ≥ 0, got {self.blocks}")
         if not self.huge > 0.0:
             raise DofviewError(f"huge-CoC threshold must be a fraction of the frame > 0, got {self.huge}")
         if not (math.isfinite(self.limit) and self.limit >= 1.0):
@@ -172,10 +164,7 @@ class SliceRule:
     def scale(self, radius: float) -> int:
         """The resolution reduction (1, 2, 4, …) that brings a blur of ``radius`` px to ≤ :attr:`limit`."""
         ratio = radius / self.limit * (1.0 - 1e-6)  # a radius a rounding above a power of two stays below it
-        s = 1
-        while s < ratio and s < 1 << 30:  # (glsl/plan_lattice.comp: level, the same steps)
-            s *= 2
-        return s
+        return 1 if ratio <= 1.0 else 1 << math.ceil(math.log2(ratio))
 
 
 SLICE_RULE = SliceRule()
@@ -197,36 +186,24 @@ def signed_coc(depth: np.ndarray, lens: Lens) -> np.ndarray:
     return 0.5 * lens.aperture * (1.0 / np.asarray(depth, np.float64) - lens.inv_focus)
 
 
-def slice_edges(c_min: float, c_max: float, rule: SliceRule, frame: float = math.inf, size: float = 1.0) -> np.ndarray:
+def slice_edges(c_min: float, c_max: float, rule: SliceRule, frame: float = math.inf) -> np.ndarray:
     """(K + 1,) float64 layer edges in signed CoC px, descending (front to back), covering
     [max(c_min, −H), min(c_max, H)], H = huge·``frame`` (``frame``: the frame's larger side in
     px of the kernel's blur, :func:`plan_layers`): the focus layer [−w/2, w/2], then layers of
-    width w·g, w·g², … outwards on either side, each at least :func:`width_floor` wide (for a
-    kernel of ``size``, :func:`layers_of`). Layer i spans edges[i] ≥ c > edges[i + 1]
-    (glsl/plan_lattice.comp is the twin, op for op)."""
+    width w·g, w·g², … outwards on either side. Layer i spans edges[i] ≥ c > edges[i + 1]."""
     huge = rule.huge * frame
     lo, hi = max(c_min, -huge), min(c_max, huge)
 
     def side(limit: float) -> list[float]:
         out, e, w = [], rule.width / 2, rule.width
         while e < limit:
-            w = max(w * rule.growth, width_floor(e, rule, size))
+            w *= rule.growth
             e = min(e + w, huge)
             out.append(e)
         return out
 
     half = rule.width / 2
     return np.array(side(hi)[::-1] + [half, -half] + [-e for e in side(-lo)], np.float64)
-
-
-def width_floor(e: float, rule: SliceRule, size: float = 1.0) -> float:
-    """The narrowest layer, px of CoC, that starts at |c| = ``e`` px for a kernel of ``size``:
-    SliceRule.blocks blocks of the level 1/s it will be blurred at (s = SliceRule.scale of its
-    smallest blur in px of the kernel's own, e·size), in px of CoC; 0 at full resolution (s = 1).
-    In the kernel's own blur, so that a refinement stage's small cells are cut as finely as
-    their level needs (its layers converge to the lens as the stages grow)."""
-    s = rule.scale(e * size)
-    return rule.blocks * s / size if s > 1 else 0.0
 
 
 def snap_edges(edges: np.ndarray, c: np.ndarray, snap: float) -> np.ndarray:
@@ -306,12 +283,11 @@ NO_BOX = (2**31 - 1, 2**31 - 1, -2**31, -2**31)
 
 
 def measure_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = SliceRule(),
-                   frame: float = math.inf, current: bool = True, size: float = 1.0) -> LayerStats:
+                   frame: float = math.inf, current: bool = True) -> LayerStats:
     """The slots and CoC ranges (:class:`LayerStats`, without boxes) of Gaussians at camera depths
     ``depth`` (N,) float32 scene units in draw order, nearest first; those at z ≤ ``near`` (culled)
     join the layer before them. ``frame``: the frame's larger side in px of the kernel's blur
-    (px / the kernel's size, :func:`layers_of`), which SliceRule.huge is a fraction of; ``size``:
-    the kernel's size, for the layers' width floor (:func:`width_floor`).
+    (px / the kernel's size, :func:`layers_of`), which SliceRule.huge is a fraction of.
     ``current``: the order is sorted for these depths; else it was sorted for an earlier view (the viewer's background sort), is nearly sorted, and each Gaussian takes the
     farthest layer of those before it, so the ranges stay contiguous; its edges stay on the
     lattice (:func:`snap_edges` needs the depths sorted)."""
@@ -320,7 +296,7 @@ def measure_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule =
     if not live.any():
         return LayerStats(np.zeros(0), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
     c = signed_coc(depth[live], lens)
-    edges = slice_edges(float(c.min()), float(c.max()), rule, frame, size)
+    edges = slice_edges(float(c.min()), float(c.max()), rule, frame)
     if current:
         edges = snap_edges(edges, c, rule.snap)
     k = len(edges) - 1
@@ -369,7 +345,7 @@ def plan_layers(depth: np.ndarray, lens: Lens, near: float, rule: SliceRule = Sl
                 size: float = 1.0, frame: float = math.inf, current: bool = True) -> list[Layer]:
     """The non-empty layers, front to back, of Gaussians at camera depths ``depth`` (N,) scene
     units in draw order (:func:`measure_layers`, :func:`layers_of`)."""
-    return layers_of(measure_layers(depth, lens, near, rule, frame, current, size), rule, size)
+    return layers_of(measure_layers(depth, lens, near, rule, frame, current), rule, size)
 
 
 Box = tuple[int, int, int, int]
@@ -530,7 +506,7 @@ def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, le
     w, h = camera.width, camera.height
     if lens.aperture == 0.0:
         return pinhole_plan(len(order), w, h)
-    stats = measure_layers(camera_depths(scene.means, camera)[order], lens, near, rule, max(w, h) / size, current, size)
+    stats = measure_layers(camera_depths(scene.means, camera)[order], lens, near, rule, max(w, h) / size, current)
     stats = replace(stats, boxes=screen_boxes(scene, largest, order, camera, stats.bounds, near))
     return frame_plan(stats, camera, rule, size)
 

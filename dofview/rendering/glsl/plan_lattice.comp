@@ -1,8 +1,8 @@
 #version 430
 // The sliced mode's plan, step 2 (one invocation): the live Gaussians' CoC range (a sorted order:
 // its first live and its last Gaussian; otherwise plan_extent.comp's atomics) and the lattice of
-// slice edges over it, slices.slice_edges (and width_floor) in double precision op for op;
-// plan_snap.comp's workgroups (one per edge) for its indirect dispatch.
+// slice edges over it, slices.slice_edges in double precision op for op; plan_snap.comp's
+// workgroups (one per edge) for its indirect dispatch.
 layout(local_size_x = 1) in;
 
 #include FETCH
@@ -16,22 +16,6 @@ layout(local_size_x = 1) in;
 uniform double u_width;        // SliceRule.width, px
 uniform double u_growth;       // SliceRule.growth
 uniform double u_huge;         // SliceRule.huge (may be inf)
-uniform double u_blocks;       // SliceRule.blocks
-uniform double u_limit;        // SliceRule.limit, px of the kernel's blur
-uniform double u_size;         // the kernel's size against the whole aperture's
-
-// SliceRule.scale of a radius px, the same steps.
-double level(double radius) {
-    double ratio = radius / u_limit * (1.0lf - 1e-6lf), s = 1.0lf;
-    while (s < ratio && s < 1073741824.0lf) s *= 2.0lf;
-    return s;
-}
-
-// slices.width_floor: the narrowest layer from |c| = e.
-double width_floor(double e) {
-    double s = level(e * u_size);
-    return s > 1.0lf ? u_blocks * s / u_size : 0.0lf;
-}
 
 // The edges of one side beyond the focus slice up to limit (slices.slice_edges: side), written
 // from place at (ascending) or, reversed, ending at place at; returns how many (MAX_EDGES + 2: too
@@ -40,7 +24,7 @@ uint side(double limit, bool write, bool reversed, uint at) {
     double e = u_width / 2.0lf, w = u_width;
     uint n = 0u;
     while (e < limit && n <= MAX_EDGES) {
-        w = max(w * u_growth, width_floor(e));
+        w *= u_growth;
         e = min(e + w, u_huge);
         if (write) {
             if (reversed) lattice[at - n] = e; else lattice[at + n] = -e;
