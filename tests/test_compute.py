@@ -209,9 +209,9 @@ def test_depth_slices_give_the_same_image(dof):
 def test_a_window_leaves_the_tiles_without_its_splats_as_they_were():
     """A range of the order (a layer of the sliced mode) writes only the tiles that hold some of
     its splats: every other tile of the image keeps what it held, even one with splats of other
-    ranks (a room's layer covers few of its tiles; blending and storing the rest cost a tenth of
-    the frame, docs/BENCHMARKS.md "Cost in rooms"), and the tiles it writes are as drawn into a
-    cleared target."""
+    ranks (a room's layer has splats in a quarter to a third of the image's tiles,
+    docs/BENCHMARKS.md "Cost in rooms"), and the tiles it writes are as drawn into a cleared
+    target."""
     cam = _pixel_camera()
     near = [(12 - cam.cx) / 100.0, (12 - cam.cy) / 100.0, 1.0]  # pixel (12, 12), nearest first
     far = [2.0 * (50 - cam.cx) / 100.0, 2.0 * (36 - cam.cy) / 100.0, 2.0]  # pixel (50, 36)
@@ -227,7 +227,8 @@ def test_a_window_leaves_the_tiles_without_its_splats_as_they_were():
             target = r.ctx.framebuffer(color_attachments=textures)
             target.clear(marker, marker, marker, marker)
             r.splat_range(0, 1, target)  # the near splat alone
-            images.append([np.frombuffer(t.read(), np.float32).reshape(cam.height, cam.width, 4)[::-1] for t in textures])
+            images.append([np.frombuffer(t.read(), np.float32).reshape(cam.height, cam.width, 4)[::-1]
+                           for t in textures])
             target.release()
             for t in textures:
                 t.release()
