@@ -206,6 +206,47 @@ def test_depth_slices_give_the_same_image(dof):
     assert_same_image(frame, whole, min_db=80.0)
 
 
+def test_a_window_leaves_the_tiles_without_its_splats_as_they_were():
+    """A range of the order (a layer of the sliced mode) writes only the tiles that hold some of
+    its splats: every other tile of the image keeps what it held, even one with splats of other
+    ranks (a room's layer has splats in a quarter to a third of the image's tiles,
+    docs/BENCHMARKS.md "Cost in rooms"), and the tiles it writes are as drawn into a cleared
+    target."""
+    cam = _pixel_camera()
+    near = [(12 - cam.cx) / 100.0, (12 - cam.cy) / 100.0, 1.0]  # pixel (12, 12), nearest first
+    far = [2.0 * (50 - cam.cx) / 100.0, 2.0 * (36 - cam.cy) / 100.0, 2.0]  # pixel (50, 36)
+    scene = GaussianScene(means=[near, far], quats=[[1, 0, 0, 0]] * 2, scales=[[0.01] * 3, [0.02] * 3],
+                          opacities=[0.9, 0.9], sh_dc=[(1.0, 0.5, 0.2)] * 2, colour_space="linear")
+    r = ComputeBackend(scene, packed=False)
+    try:
+        r.sort(cam)
+        r.prepare_splats(cam, Lens(1.0, 0.0), RenderSettings(dof="splat"))
+        images = []
+        for marker in (0.0, 0.25):
+            textures = [r.ctx.texture((cam.width, cam.height), 4, dtype="f4") for _ in range(2)]
+            target = r.ctx.framebuffer(color_attachments=textures)
+            target.clear(marker, marker, marker, marker)
+            r.splat_range(0, 1, target)  # the near splat alone
+            images.append([np.frombuffer(t.read(), np.float32).reshape(cam.height, cam.width, 4)[::-1]
+                           for t in textures])
+            target.release()
+            for t in textures:
+                t.release()
+    finally:
+        r.release()
+    (colour, depth), (kept, kept_depth) = images
+    t = r.tile
+    mine = np.zeros((cam.height, cam.width), bool)  # the tiles the near splat's pixels lie in
+    ys, xs = np.nonzero(colour[..., 3] > 0)
+    assert len(ys) and colour[12, 12, 3] > 0.5 and colour[36, 50, 3] == 0.0
+    for y, x in zip(ys // t, xs // t):
+        mine[y * t:(y + 1) * t, x * t:(x + 1) * t] = True
+    assert not mine[36, 50] and mine.mean() < 0.25
+    assert np.all(kept[~mine] == 0.25) and np.all(kept_depth[~mine] == 0.25)  # as they were
+    np.testing.assert_array_equal(kept[mine], colour[mine])  # written whole, as into a cleared target
+    np.testing.assert_array_equal(kept_depth[mine], depth[mine])
+
+
 def test_refusals_are_clear_errors(monkeypatch):
     scene = _one([0, 0, 1.0], [3.0, 3.0, 0.1])
     with pytest.raises(DofviewError, match="covers more than 10 tiles"):

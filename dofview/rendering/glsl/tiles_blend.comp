@@ -8,7 +8,8 @@
 // pass) and blending continues from them. Only the splats of ranks [u_window.x, u_window.y) of
 // the depth order are blended (a depth slice of the sliced mode; tile lists hold ranks, in order),
 // in the tiles from u_tile_origin on, and only the pixels of u_box (a depth slice's window: what
-// lies beyond stays as it was). GROUP (threads along a side) and PIX are #defined.
+// lies beyond stays as it was, as do the tiles that hold none of its splats). GROUP (threads along
+// a side) and PIX are #defined.
 layout(local_size_x = GROUP, local_size_y = GROUP) in;
 
 #include "lens.glsl"
@@ -44,6 +45,17 @@ uint lower_bound(uint lo, uint hi, uint rank) {
 
 void main() {
     uvec2 tile = gl_WorkGroupID.xy + u_tile_origin;
+    uvec2 range = ranges[tile.y * u_tiles_x + tile.x];
+    range.x = lower_bound(range.x, range.y, u_window.x);
+    range.y = lower_bound(range.x, range.y, u_window.y);
+    // A pass blends at most u_take splats of the tile from the u_skip-th on (llvmpipe ends an
+    // invocation's loops after 65535 iterations in all, so a longer tile is blended in passes).
+    range.x = min(range.y, range.x + u_skip);
+    range.y = range.x + min(range.y - range.x, u_take);
+    // No splat of the window in this tile: its pixels keep what they hold (the caller cleared
+    // them, or an earlier pass wrote them), so nothing is loaded or stored (a layer of the sliced
+    // mode has splats in only part of its window's tiles: docs/BENCHMARKS.md, "Cost in rooms")
+    if (range.x == range.y) return;
     ivec2 first = ivec2(tile * TILE + gl_LocalInvocationID.xy * PIX);
     ivec2 px[N];
     vec3 rgb[N];
@@ -67,13 +79,6 @@ void main() {
         if (!inside) T[k] = 0.0;  // never blended, never stored
         live = live || T[k] >= T_MIN;
     }
-    uvec2 range = ranges[tile.y * u_tiles_x + tile.x];
-    range.x = lower_bound(range.x, range.y, u_window.x);
-    range.y = lower_bound(range.x, range.y, u_window.y);
-    // A pass blends at most u_take splats of the tile from the u_skip-th on (llvmpipe ends an
-    // invocation's loops after 65535 iterations in all, so a longer tile is blended in passes).
-    range.x = min(range.y, range.x + u_skip);
-    range.y = range.x + min(range.y - range.x, u_take);
     // Every thread reads the same splat at the same time (a broadcast): no shared-memory staging,
     // which on llvmpipe costs more than the loads it saves.
     for (uint j = range.x; j < range.y && live; ++j) {
