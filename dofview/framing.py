@@ -739,8 +739,7 @@ def judge_place(scene: GaussianScene, up: np.ndarray) -> Place | str:
     open_side = float(gaps[enclosed].min())
     pick = int(np.argmax(enclosed))
     best, start, enclosure = cells[pick], starts[pick], float(met[pick].mean())
-    angles = np.arange(AZIMUTHS) * 2 * math.pi / AZIMUTHS
-    dirs = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    dirs = _band(AZIMUTHS, (0.0,))[:, :2]
     reach = _march(sight, start[None, :2], dirs)[0][0]
     # principal axis of the isovist (the star polygon of the reaches about the eye): its central
     # second moment ∫∫ (x − c)(x − c)ᵀ dA, from ∫₀ᵈ r^(k+1) dr = d^(k+2)/(k+2) per ray
