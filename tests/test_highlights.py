@@ -333,7 +333,7 @@ def test_over_the_cap_the_frame_does_not_follow_the_gpus_order(backend):
             for other in frames[1:]:
                 assert np.abs(other - frames[0]).max() <= 1e-6 * frames[0][..., :3].max()
             twin = render_reference_sliced(scene, cam, lens, RenderSettings(), rule=rule).rgba
-            assert psnr(frames[0], twin) >= 45.0  # 52–92 dB measured
+            assert psnr(frames[0], twin) >= 80.0  # 91.7 dB measured at each cap (67 at 12 when the GPU's order chose)
             assert frames[0][..., :3].sum() == pytest.approx(off[..., :3].sum(), rel=2e-3)
             kept.add(round(float(np.abs(frames[0] - off).sum()), 3))
     finally:

@@ -23,10 +23,11 @@ clamp). Front to back, each layer is blended by the backend as a pinhole with th
    layer's blocks whose brightness stands out of its neighbourhood to a sprite list (at most
    SliceRule.sprites of the frame's pixels: a layer's highlights are counted first and appended
    all or none, sprite_accept.comp, so that no order of the GPU's chooses; those of a layer that
-   does not fit stay in its gather) and takes that light out of its texel; slice_sprite.vert/.frag draw them as instanced quads, indirectly
-   from the count the GPU wrote (no read-back), each the gather's kernel at full resolution at
-   the pixel's own CoC, into sprite targets that slice_upsample.frag adds to the layer's image.
-   Such a layer is a run of its own, so that the layers behind it are hidden by its sprites too;
+   does not fit stay in its gather) and takes that light out of its texel;
+   slice_sprite.vert/.frag draw them as instanced quads, indirectly from the count the GPU wrote
+   (no read-back), each the gather's kernel at full resolution at the pixel's own CoC, into
+   sprite targets that slice_upsample.frag adds to the layer's image. Such a layer is a run of
+   its own, so that the layers behind it are hidden by its sprites too;
 
 and slice_resolve.frag writes the frame into the renderer's targets: "over", scaled up to the
 visible coverage where a cut between layers left it short, and the accumulated depth sums. The

@@ -8,7 +8,7 @@ uniform uint u_cap;  // sprites a frame
 
 layout(std430, binding = 0) buffer Sprites {
     uint taken;     // sprites of the layers accepted so far this frame
-    uint asked;     // this layer's highlights
+    uint asked;     // this layer's highlights (left at 0 for the next layer's count)
     uint accepted;  // out: whether they are drawn
     uint pad;
 };
@@ -16,5 +16,5 @@ layout(std430, binding = 0) buffer Sprites {
 void main() {
     accepted = (asked <= u_cap && taken <= u_cap - asked) ? 1u : 0u;
     if (accepted == 1u) taken += asked;
-    else asked = 0u;
+    asked = 0u;
 }
