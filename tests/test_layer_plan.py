@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dofview.bench.sliced_study import indoor_scene
 from dofview.camera import Camera, look_at
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
@@ -20,11 +21,13 @@ from dofview.lens import Lens, aperture_for_blur
 from dofview.rendering import get_backend
 from dofview.rendering.depth_order import camera_depths, depth_keys, front_to_back
 from dofview.rendering.layer_plan import MAX_EDGES, GpuLayerPlan, coc_of_key, coc_threshold
+from dofview.rendering.reference import render_reference
 from dofview.rendering.slices import (
     NO_BOX,
     SLICE_RULE,
     LayerStats,
     frame_plan,
+    layer_reach,
     measure_layers,
     plan_frame,
     screen_boxes,
@@ -36,10 +39,10 @@ DATA = ROOT / "tests" / "data"
 SETTINGS = RenderSettings()
 
 
-def numpy_stats(scene, order, cam, lens, rule=SLICE_RULE, near=SETTINGS.near, current=True, size=1.0) -> LayerStats:
-    stats = measure_layers(camera_depths(scene.means, cam)[order], lens, near, rule, max(cam.width, cam.height) / size,
-                           current)
-    return replace(stats, boxes=screen_boxes(scene, scene.scales.max(axis=1), order, cam, stats.bounds, near))
+def numpy_stats(scene, order, cam, lens, rule=SLICE_RULE, settings=SETTINGS, current=True, size=1.0) -> LayerStats:
+    stats = measure_layers(camera_depths(scene.means, cam)[order], lens, settings.near, rule,
+                           max(cam.width, cam.height) / size, current)
+    return replace(stats, boxes=screen_boxes(scene, order, cam, lens, settings, stats.bounds, rule))
 
 
 def assert_same(got: LayerStats, want: LayerStats) -> None:
@@ -93,8 +96,7 @@ def test_gpu_plan_is_the_numpy_plan_on_the_test_scenes(backend, name):
             assert_same(got, want)
             assert frame_plan(got, cam, SLICE_RULE, size) == frame_plan(want, cam, SLICE_RULE, size)
             got, want = gpu_stats(r, cam, lens), numpy_stats(scene, order, cam, lens)
-            assert frame_plan(got, cam, SLICE_RULE) == plan_frame(scene, scene.scales.max(axis=1), order, cam, lens, 0.01,
-                                                                  SLICE_RULE)
+            assert frame_plan(got, cam, SLICE_RULE) == plan_frame(scene, order, cam, lens, SETTINGS, SLICE_RULE)
     finally:
         r.release()
 
@@ -120,7 +122,7 @@ def _both(scene, lens, rule=SLICE_RULE, settings=SETTINGS, cam=CAM) -> tuple[Lay
             out.append(gpu_stats(r, cam, lens, rule, settings))
         finally:
             r.release()
-    want = numpy_stats(scene, front_to_back(scene.means, cam), cam, lens, rule, settings.near)
+    want = numpy_stats(scene, front_to_back(scene.means, cam), cam, lens, rule, settings)
     for got in out:
         assert_same(got, want)
     return out[0], want
@@ -207,3 +209,43 @@ def test_the_planning_benchmark_times_both_plans_and_checks_they_agree(capsys):
     assert big.count == 2 * n + 5 and np.array_equal(big.means[:n], scene.means)
     np.testing.assert_array_equal(big.means[n:2 * n, 1:], scene.means[:, 1:])
     assert np.all(big.means[n:2 * n, 0] > scene.means[:, 0])  # the copies side by side
+
+
+def test_a_layers_box_is_where_its_splats_draw():
+    """In a room with splats at the lens (sliced_study.indoor_scene: leaves 0.12–0.45 units away,
+    floaters), a layer's window (what every pass after its blend works on) holds every pixel its
+    splats draw within its reach of the frame; for the layers at the lens, whose splats are many
+    pixels wide, within 4 px of those pixels' box, and empty where they draw nothing there. A box
+    of whole footprints, or of σ bounded by the largest scale, covers the frame for a splat at the
+    lens that draws in a corner of it or nowhere: such layers did five full-resolution passes over
+    the whole image for nothing."""
+    scene, cam = indoor_scene()
+    cam = cam.resized(120, 90)
+    z = camera_depths(scene.means, cam)
+    focus = float(np.percentile(z[z > 0.05], 70))
+    lens = Lens(focus, aperture_for_blur(8.0, focus, float(np.percentile(z, 20)), float(np.percentile(z, 95))))
+    order = front_to_back(scene.means, cam)
+    plan = plan_frame(scene, order, cam, lens, SETTINGS, SLICE_RULE)
+    guarded = cam.guarded(plan.guard)
+    pinhole = (Lens(lens.focus, 0.0), replace(SETTINGS, dof="splat"))
+    near = [0, 0]  # layers at the lens: empty windows, tight ones
+    for layer, (x0, y0, x1, y1) in zip(plan.layers, plan.windows):
+        if layer.lensed:
+            continue  # drawn with the lens over the whole guarded image
+        band = min(plan.guard, layer_reach(layer))
+        lo, hx, hy = plan.guard - band, plan.guard + cam.width + band, plan.guard + cam.height + band
+        alpha = render_reference(scene.subset(order[layer.first:layer.end]), guarded, *pinhole).alpha
+        ys, xs = np.nonzero(alpha[lo:hy, lo:hx] > 0)
+        at_lens = float(np.median(z[order[layer.first:layer.end]])) < 0.5
+        if not len(xs):
+            if at_lens:
+                assert x1 <= x0 or y1 <= y0, (layer, (x0, y0, x1, y1))
+                near[0] += 1
+            continue
+        dx0, dy0, dx1, dy1 = xs.min() + lo, ys.min() + lo, xs.max() + lo + 1, ys.max() + lo + 1
+        assert x0 <= dx0 and y0 <= dy0 and x1 >= dx1 and y1 >= dy1, (layer, (x0, y0, x1, y1), (dx0, dy0, dx1, dy1))
+        if at_lens:
+            assert x0 >= dx0 - 4 and y0 >= dy0 - 4 and x1 <= dx1 + 4 and y1 <= dy1 + 4, (layer, (x0, y0, x1, y1),
+                                                                                           (dx0, dy0, dx1, dy1))
+            near[1] += 1
+    assert near[0] + near[1] >= 4 and near[1] >= 2, near

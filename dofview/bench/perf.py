@@ -326,7 +326,7 @@ def measure_fragments(n: int, size: tuple[int, int]) -> dict:
     from dofview.bench.synth import benchmark_camera, random_scene
     from dofview.lens import Lens
     from dofview.rendering import get_backend
-    from dofview.rendering.reference import project
+    from dofview.rendering.footprint import project
 
     cam = benchmark_camera(*size)
     scene = random_scene(n, degree=0, seed=5)

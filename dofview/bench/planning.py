@@ -53,12 +53,11 @@ def tiled(scene: GaussianScene, count: int) -> GaussianScene:
 def time_plans(r: Renderer, cam: Camera, lens: Lens, reps: int) -> dict[str, tuple[float, float]]:
     """{"numpy", "gpu"}: (median wall ms, median host ms) of one frame's plan, interleaved."""
     planner = GpuLayerPlan(r)
-    largest = r.scene.scales.max(axis=1)
     rule = SLICE_RULE
     out: dict[str, list[tuple[float, float]]] = {"numpy": [], "gpu": []}
 
     def numpy_plan():
-        return plan_frame(r.scene, largest, r.front_to_back(), cam, lens, SETTINGS.near, rule)
+        return plan_frame(r.scene, r.front_to_back(), cam, lens, SETTINGS, rule)
 
     def gpu_plan():
         return frame_plan(planner.measure(cam, lens, SETTINGS, rule), cam, rule)

@@ -42,7 +42,7 @@ from dofview.progress import Progress
 from dofview.rendering import Renderer, get_backend
 from dofview.rendering.accumulate import accumulate
 from dofview.rendering.focus import auto_focus, depth_range
-from dofview.rendering.reference import project
+from dofview.rendering.footprint import project
 from dofview.rendering.depth_order import front_to_back
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap

@@ -19,8 +19,8 @@ sort's (project.glsl: camera_depth; depth_order.camera_depths is the CPU's twin)
    either side of the focus's threshold: |c| is monotonic in the key there, so the CPU turns them
    into the slice's CoC range exactly);
 4. plan_stats.comp, one thread per :data:`STATS_ITEMS` places of the slices: each slice's screen
-   box (slices.screen_boxes), reduced per thread, per workgroup in shared memory, and added to the
-   plan with a few atomics.
+   box (slices.screen_boxes: its Gaussians' footprints, each cut to the widest guard band), reduced
+   per thread, per workgroup in shared memory, and added to the plan with a few atomics.
 
 An order sorted for an earlier view (the quad backend's background sort, while the viewer moves)
 is nearly sorted: plan_extent.comp finds its key range with atomics instead, plan_slots.comp and
@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import struct
+from dataclasses import replace
 
 import moderngl
 import numpy as np
@@ -50,7 +51,7 @@ from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.gl import compute_shader
 from dofview.rendering.gpu_sort import groups
-from dofview.rendering.slices import LayerStats, SliceRule
+from dofview.rendering.slices import LayerStats, SliceRule, guard_cap
 from dofview.rendering.uniforms import set_projection_uniforms
 
 MAX_EDGES = 256
@@ -132,8 +133,8 @@ def coc_threshold(e: float, lens: Lens, strict: bool = False) -> int:
 class GpuLayerPlan:
     """The GPU plan of one renderer's sliced frames (made by its first sliced draw with an aperture).
 
-    GPU memory: 4 B per Gaussian (each one's largest scale, for the boxes) and the plan's record;
-    an earlier view's order adds 4 B per Gaussian (its running slots) the first time one is planned.
+    GPU memory: the plan's record; an earlier view's order adds 4 B per Gaussian (its running
+    slots) the first time one is planned.
     """
 
     def __init__(self, renderer) -> None:
@@ -143,9 +144,6 @@ class GpuLayerPlan:
         self._kernels: dict[str, moderngl.ComputeShader] = {}
         for name in ("plan_lattice", "plan_snap", "plan_bounds", "plan_stats"):
             self._kernel(name)
-        scene = renderer.scene
-        largest = scene.scales.max(axis=1).astype(np.float32) if scene.count else np.zeros(1, np.float32)
-        self._largest = ctx.buffer(np.ascontiguousarray(largest))
         self._record = ctx.buffer(reserve=PLAN_BYTES)
         self._running: moderngl.Buffer | None = None  # an earlier view's running slots
         self._maxima: list[moderngl.Buffer] = []  # their block maxima, level by level
@@ -160,7 +158,7 @@ class GpuLayerPlan:
     @property
     def gpu_bytes(self) -> int:
         """Bytes of its buffers as now allocated."""
-        own = [self._largest, self._record, *self._maxima] + ([self._running] if self._running is not None else [])
+        own = [self._record, *self._maxima] + ([self._running] if self._running is not None else [])
         return sum(b.size for b in own)
 
     def measure(self, camera: Camera, lens: Lens, settings: RenderSettings, rule: SliceRule,
@@ -178,6 +176,8 @@ class GpuLayerPlan:
         n = r.scene.count
         order = r.draw_order(camera)
         huge = rule.huge * max(camera.width, camera.height) / size
+        cap = float(guard_cap(rule, camera.width, camera.height))
+        pinhole = Lens(lens.focus, 0.0)  # the boxes: the footprints as a layer's pinhole blend draws them
         values = {
             "u_n": n, "u_back_to_front": order.back_to_front, "u_sorted": order.sorted,
             "u_half_a": 0.5 * lens.aperture, "u_inv_f": lens.inv_focus,
@@ -186,14 +186,14 @@ class GpuLayerPlan:
             "u_key_back": coc_threshold(-huge, lens, strict=True),
             "u_key_focus": coc_threshold(0.0, lens, strict=True),
             "u_width": rule.width, "u_growth": rule.growth, "u_huge": huge, "u_snap": rule.snap,
-            "u_gain": max(camera.fx, camera.fy),
+            "u_clip": (-cap, -cap, camera.width + cap, camera.height + cap),
         }
         names = ["plan_lattice", "plan_snap", "plan_bounds", "plan_stats"]
         if not order.sorted:
             names += ["plan_extent", "plan_slots"]
         for name in names:
             kernel = self._kernel(name)
-            set_projection_uniforms(kernel, camera, lens, settings)
+            set_projection_uniforms(kernel, camera, pinhole, replace(settings, dof="splat"))
             for key, value in values.items():
                 if key in kernel:
                     kernel[key].value = value
@@ -204,7 +204,6 @@ class GpuLayerPlan:
             r.bind_scene()
             order.buffer.bind_to_storage_buffer(3)
             self._record.bind_to_storage_buffer(4)
-            self._largest.bind_to_storage_buffer(5)
             if self._running is not None:
                 self._running.bind_to_storage_buffer(6)
             if size:
@@ -256,7 +255,7 @@ class GpuLayerPlan:
             pass_(apply)
 
     def release(self) -> None:
-        for obj in (*self._kernels.values(), self._largest, self._record, self._running, *self._maxima):
+        for obj in (*self._kernels.values(), self._record, self._running, *self._maxima):
             if obj is not None:
                 obj.release()
 

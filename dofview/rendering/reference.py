@@ -17,20 +17,9 @@ import numpy as np
 from dofview.camera import Camera
 from dofview.deep import TRANSMITTANCE_MIN, DeepFrame, DeepSettings
 from dofview.frame import Frame, RenderSettings, depth_from_weighted
-from dofview.lens import (
-    ALPHA_MAX,
-    SUPPORT_MAX,
-    Lens,
-    blur_footprint,
-    coc,
-    cut_splat,
-    disk_peak_and_area,
-    disk_profile,
-    disk_support,
-    kernel_shape,
-    normalise_opacity,
-)
+from dofview.lens import ALPHA_MAX, SUPPORT_MAX, Lens, disk_profile
 from dofview.rendering.deep_sliced import SliceCapture, layer_depths
+from dofview.rendering.footprint import project
 from dofview.rendering.slices import (
     Aperture,
     LensCell,
@@ -87,55 +76,6 @@ def sh_colour(scene: GaussianScene, eye: np.ndarray, idx: np.ndarray) -> np.ndar
         d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
         c = c + sh_view_terms(scene.sh_rest[idx].astype(np.float64), d)
     return np.maximum(c, 0.0)
-
-
-def project(scene: GaussianScene, camera: Camera, lens: Lens, settings: RenderSettings) -> dict[str, np.ndarray]:
-    """Per-Gaussian screen-space quantities, float64, for the Gaussians in front of the near plane.
-
-    Returns a dict of arrays over the M kept Gaussians (front to back): ``idx`` (M,), ``mean2d``
-    (M, 2) pixels, ``cov`` (M, 3) the blurred 2D covariance (xx, xy, yy) px², ``opacity`` (M,) o′
-    (o′/F(0) for a disk splat), ``depth`` (M,) camera z, ``r2`` (M,) the support bound on dᵀΣ⁻¹d,
-    ``shape`` (M,) the kernel shape s (1: Gaussian).
-    """
-    t = camera.world_to_camera(scene.means)
-    keep = t[:, 2] > settings.near
-    idx = np.nonzero(keep)[0]
-    idx = idx[np.argsort(t[idx, 2], kind="stable")]
-    t = t[idx]
-    fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
-    iz = 1.0 / t[:, 2]
-    lo_x, lo_y, hi_x, hi_y = camera.frustum_limits()
-    tx = np.clip(t[:, 0] * iz, lo_x, hi_x)
-    ty = np.clip(t[:, 1] * iz, lo_y, hi_y)
-    R = camera.R
-    a = (fx * iz)[:, None] * (R[0][None] - tx[:, None] * R[2][None])
-    c = (fy * iz)[:, None] * (R[1][None] - ty[:, None] * R[2][None])
-    M = scene.rotation_matrices()[idx] * scene.scales[idx].astype(np.float64)[:, None, :]  # Σ = M Mᵀ
-    p0 = np.einsum("ni,nij->nj", a, M)
-    p1 = np.einsum("ni,nij->nj", c, M)
-    sxx, sxy, syy = (p0 * p0).sum(1), (p0 * p1).sum(1), (p1 * p1).sum(1)
-    det_p = (np.cross(p0, p1) ** 2).sum(1)
-    radius = coc(iz, lens.aperture, lens.inv_focus)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        sxx, sxy, syy, det, beta = blur_footprint(sxx, sxy, syy, det_p, radius, settings.k)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        shape = kernel_shape(beta, det, radius, settings.k) if settings.kernel == "disk" else np.ones_like(det)
-        shape = np.where(np.isfinite(shape), shape, 1.0)
-    disk = shape < 1.0
-    f0, area = disk_peak_and_area(np.where(disk, shape, 0.5))
-    o = normalise_opacity(scene.opacities[idx].astype(np.float64), beta * np.where(disk, area, 1.0),
-                          settings.opacity_norm)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        kept, o, r2 = cut_splat(o, settings.tau, settings.cut)
-        r2 = np.where(disk, disk_support(o, settings.tau, np.where(disk, shape, 0.5)), r2)
-    o = np.where(disk, o / f0, o)
-    ok = np.isfinite(det) & (det > 0) & kept
-    mean2d = np.stack([fx * t[:, 0] * iz + cx, fy * t[:, 1] * iz + cy], axis=1)
-    sel = np.nonzero(ok)[0]
-    return {
-        "idx": idx[sel], "mean2d": mean2d[sel], "cov": np.stack([sxx, sxy, syy], 1)[sel],
-        "opacity": o[sel], "depth": t[sel, 2], "r2": r2[sel], "shape": shape[sel],
-    }
 
 
 def render_reference(scene: GaussianScene, camera: Camera, lens: Lens,
@@ -342,8 +282,7 @@ def _sliced_layers(scene: GaussianScene, camera: Camera, lens: Lens, settings: R
     z = scene.means.astype(np.float64) @ camera.R[2].astype(np.float64) + float(camera.T[2])
     order = np.argsort(z, kind="stable")
     cell = cell or Aperture(settings.blades, math.radians(settings.blade_rotation)).whole()
-    frame = plan_frame(scene, scene.scales.max(axis=1), order, camera, lens, settings.near, rule,
-                       math.sqrt(cell.share))  # as the GL path plans it
+    frame = plan_frame(scene, order, camera, lens, settings, rule, math.sqrt(cell.share))  # as the GL path plans it
     per_splat = replace(settings, dof="splat")
     if not frame.layers:
         return None

@@ -18,8 +18,8 @@ a polygon, or a cell of a partition of it: :class:`LensCell`) scaled by the sour
 pixel's light is kept exactly; at |c| < ½ it is the identity.
 
 The guard band: a layer blurred by c px takes light from up to c px beyond the frame. Where a
-layer's Gaussians reach beyond the frame (:func:`screen_boxes`, not clipped), the layers are
-blended into an image extended on every side (Camera.guarded: the frustum clamp stays the
+layer's Gaussians reach beyond the frame (:func:`screen_boxes`, cut to the widest band), the
+layers are blended into an image extended on every side (Camera.guarded: the frustum clamp stays the
 frame's, so every footprint is the pinhole's) by what their blurs need (:func:`guard_band`: in
 steps doubling from 32 px, at most an eighth of the frame's larger side), each layer within its
 own reach of the frame (:func:`layer_windows`). Beyond what was rendered the gather repeats the
@@ -80,8 +80,10 @@ import numpy as np
 
 from dofview.camera import Camera
 from dofview.errors import DofviewError
+from dofview.frame import RenderSettings
 from dofview.lens import Lens
 from dofview.rendering.depth_order import camera_depths
+from dofview.rendering.footprint import clip_boxes, project
 from dofview.tonemap import decode, encode
 
 
@@ -358,16 +360,24 @@ GUARD_MIN_REACH = 8
 repeating the frame's edge serves them."""
 
 
-def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, bounds: np.ndarray,
-                 near: float) -> np.ndarray:
+def guard_cap(rule: SliceRule, width: int, height: int) -> int:
+    """The widest guard band px a frame of ``width`` × ``height`` may get (:attr:`SliceRule.guard` of
+    its larger side, rounded up to :data:`GUARD_STEP`)."""
+    return -(-int(rule.guard * max(width, height)) // GUARD_STEP) * GUARD_STEP
+
+
+def screen_boxes(scene, order: np.ndarray, camera: Camera, lens: Lens, settings: RenderSettings,
+                 bounds: np.ndarray, rule: SliceRule) -> np.ndarray:
     """(K, 4) int64 per slice of ``bounds`` (LayerStats.bounds) the pixels its blend can touch,
     (x0, y0, x1, y1) image pixels of ``camera``, rows from the top, ends exclusive, *not* clipped
-    to the frame (the guard band needs to know how far a layer reaches beyond it): the union of
-    its Gaussians' 3σ boxes, with σ bounded by the largest scale (``largest``, (N,) float32 in
-    scene order) through the norm of the projection's Jacobian (clamped as project.glsl clamps it:
-    Camera.frustum_limits), the 0.3 px² low-pass and a pixel of margin; :data:`NO_BOX` for an
-    empty slice. Float32, the slices' ranges reduced in one pass (glsl/plan_stats.comp is the
-    twin)."""
+    to the frame (the guard band needs to know how far a layer reaches beyond it) but to the widest
+    guard band around it (:func:`guard_cap`): the union over its Gaussians of the part of each
+    one's footprint, as the pinhole blends it (``lens`` focused, A = 0, ``settings``), in that
+    rectangle (footprint.clip_boxes), and a pixel of margin; :data:`NO_BOX` for an empty slice.
+    A splat near the lens can be an ellipse thousands of pixels wide whose box covers the frame
+    while it draws in a corner of it or nowhere: boxes of whole footprints (or, as before, of 3σ
+    of the largest scale) made a room's layers work on 2–5 times the pixels they draw in. Float64 (glsl/plan_stats.comp is the float32 twin:
+    within a pixel)."""
     w, h = camera.width, camera.height
     k = max(len(bounds) - 3, 0)
     out = np.tile(np.array(NO_BOX, np.int64), (k, 1))
@@ -375,22 +385,18 @@ def screen_boxes(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, 
     full = np.flatnonzero(ends > starts)
     if not len(full):
         return out
-    # the footprints in the scene's own order (contiguous arithmetic), then four 1-D gathers into
-    # the draw order: gathering the (N, 3) means by the order instead costs ten times as much
-    t = scene.means @ camera.R.T.astype(np.float32) + camera.T.astype(np.float32)
-    z = np.maximum(t[:, 2], np.float32(near))
-    lo_x, lo_y, hi_x, hi_y = camera.frustum_limits()
-    tx, ty = np.clip(t[:, 0] / z, lo_x, hi_x), np.clip(t[:, 1] / z, lo_y, hi_y)
-    gain = np.float32(max(camera.fx, camera.fy)) / z * np.sqrt(1.0 + tx * tx + ty * ty)
-    reach = 3.0 * np.sqrt((gain * largest) ** 2 + np.float32(0.3)) + 1.0
-    u, v = camera.fx * t[:, 0] / z + camera.cx, camera.fy * t[:, 1] / z + camera.cy
+    cap = guard_cap(rule, w, h)
+    pr = project(scene, camera, Lens(lens.focus, 0.0), replace(settings, dof="splat"))
+    clipped = clip_boxes(pr["mean2d"], pr["cov"], pr["det"], pr["r2"], (-cap, -cap, w + cap, h + cap))
+    box = np.tile(np.array([np.inf, np.inf, -np.inf, -np.inf]), (len(scene.means), 1))
+    hit = (clipped[:, 0] <= clipped[:, 2]) & (clipped[:, 1] <= clipped[:, 3])
+    box[pr["idx"][hit]] = np.concatenate([np.floor(clipped[hit, :2]) - 1, np.ceil(clipped[hit, 2:]) + 2], 1)
     first = int(starts[full[0]])
-    idx = order[first:int(ends[full[-1]])]
+    part = box[order[first:int(ends[full[-1]])]]
     seg = starts[full] - first  # the non-empty slices are contiguous: reduceat over their starts
-    # bounded well beyond any guard band, so that the int conversion cannot overflow
-    x0, y0 = (np.clip(np.floor(np.minimum.reduceat((a - reach)[idx], seg)), -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
-    x1, y1 = (np.clip(np.ceil(np.maximum.reduceat((a + reach)[idx], seg)) + 1, -4 * n, 5 * n) for a, n in ((u, w), (v, h)))
-    out[full] = np.stack([x0, y0, x1, y1], 1).astype(np.int64)
+    lo, hi = np.minimum.reduceat(part[:, :2], seg, axis=0), np.maximum.reduceat(part[:, 2:], seg, axis=0)
+    drawn = np.isfinite(lo[:, 0])
+    out[full[drawn]] = np.concatenate([lo[drawn], hi[drawn]], 1).astype(np.int64)
     return out
 
 
@@ -416,7 +422,7 @@ def guard_band(layers: list[Layer], boxes: list[Box], width: int, height: int, r
             need = max(need, min(max(-x0, -y0, x1 - width, y1 - height, 0), reach))
     if need == 0:
         return 0
-    cap = -(-int(rule.guard * max(width, height)) // GUARD_STEP) * GUARD_STEP
+    cap = guard_cap(rule, width, height)
     band = GUARD_STEP
     while band < need:
         band *= 2
@@ -496,18 +502,19 @@ def frame_plan(stats: LayerStats, camera: Camera, rule: SliceRule, size: float =
     return FramePlan(layers, guard, layer_windows(layers, boxes, w, h, guard), layer_edges(boxes, w, h, guard))
 
 
-def plan_frame(scene, largest: np.ndarray, order: np.ndarray, camera: Camera, lens: Lens, near: float,
+def plan_frame(scene, order: np.ndarray, camera: Camera, lens: Lens, settings: RenderSettings,
                rule: SliceRule, size: float = 1.0, current: bool = True) -> FramePlan:
     """The sliced mode's plan of a frame of ``scene`` seen by ``camera`` in the draw order ``order``
-    (N,) (nearest first; ``current``: sorted for this view, :func:`measure_layers`), ``largest``
-    (N,) float32 each Gaussian's largest scale, for a kernel of ``size`` (:func:`frame_plan`): the
+    (N,) (nearest first; ``current``: sorted for this view, :func:`measure_layers`), ``settings``
+    (its near plane, and the footprints' rules), for a kernel of ``size`` (:func:`frame_plan`): the
     numpy twin of the GPU's (rendering/layer_plan.py). At A = 0 no Gaussian is looked at
     (:func:`pinhole_plan`)."""
     w, h = camera.width, camera.height
     if lens.aperture == 0.0:
         return pinhole_plan(len(order), w, h)
-    stats = measure_layers(camera_depths(scene.means, camera)[order], lens, near, rule, max(w, h) / size, current)
-    stats = replace(stats, boxes=screen_boxes(scene, largest, order, camera, stats.bounds, near))
+    stats = measure_layers(camera_depths(scene.means, camera)[order], lens, settings.near, rule, max(w, h) / size,
+                           current)
+    stats = replace(stats, boxes=screen_boxes(scene, order, camera, lens, settings, stats.bounds, rule))
     return frame_plan(stats, camera, rule, size)
 
 

@@ -1,7 +1,9 @@
 #version 430
 // The sliced mode's plan, step 5, one thread per ITEMS consecutive places of the slices: each
-// slice's screen box (slices.screen_boxes, float32 as numpy computes it) and, for an order sorted
-// for an earlier view, the depth keys of its live Gaussians in front of and behind focus
+// slice's screen box (slices.screen_boxes: the union of its Gaussians' footprints as the pinhole
+// blends them, each cut to the widest guard band's rectangle u_clip, footprint.clip_boxes; float32
+// where numpy computes in float64: within a pixel) and, for an order sorted for an earlier view,
+// the depth keys of its live Gaussians in front of and behind focus
 // (smallest, largest: the CPU turns them into the slice's smallest and largest |c| exactly, since
 // |c| is monotonic in the key on either side; a sorted order has them from plan_bounds.comp). A
 // thread's places lie in one slice or a few, a workgroup's in a few more: each thread reduces its
@@ -16,8 +18,8 @@ layout(local_size_x = 256) in;
 #include "dispatch.glsl"
 #include "plan_common.glsl"
 
-layout(std430, binding = 5) readonly buffer Largest { float largest[]; };  // each Gaussian's largest scale
-uniform float u_gain;  // max(fx, fy)
+uniform vec4 u_clip;  // the rectangle the boxes are cut to (x0, y0, x1, y1), pixels
+const float CLIP_INFLATE = 1.001;  // footprint.CLIP_INFLATE
 
 const uint ITEMS = 16u;  // places a thread
 const uint SHARED = 8u;  // slices a workgroup reduces in shared memory (beyond: straight to the plan)
@@ -33,6 +35,21 @@ uint slice_at(uint p) {
         if (bounds[mid + 2u] <= p) lo = mid + 1u; else hi = mid;
     }
     return lo;
+}
+
+// (low, high) of the first coordinate over the ellipse about (p, q) of covariance
+// ((sxx, sxy), (sxy, syy)), determinant det and support r2 where its second lies in [lo, hi]
+// (footprint._band_extent): low > high where it never does.
+vec2 band_extent(float p, float q, float sxx, float sxy, float syy, float det, float r2, float lo, float hi) {
+    float ey = sqrt(r2 * syy);
+    float a = max(lo, q - ey), b = min(hi, q + ey);
+    if (a > b) return vec2(1.0, -1.0) * 3.0e38;
+    float k = sxy / syy;
+    float h = sqrt(det / syy);  // not sxx - sxy k: it cancels in float32 for a needle at the lens
+    float turn = sxy * sqrt(r2 / sxx);  // y - q of the ellipse's extreme point on the high side
+    float yh = clamp(q + turn, a, b) - q, yl = clamp(q - turn, a, b) - q;
+    return vec2(p + k * yl - h * sqrt(max(r2 - yl * yl / syy, 0.0)),
+                p + k * yh + h * sqrt(max(r2 - yh * yh / syy, 0.0)));
 }
 
 // Add one slice's reduced keys and box (identities where there were none) to the workgroup's or
@@ -85,7 +102,6 @@ void main() {
         uint v = slice_at(p0), end = bounds[v + 2u];
         uvec4 key = NO_KEYS;
         ivec4 box = NO_BOX;
-        vec2 lim = 4.0 * u_viewport;
         for (uint p = p0; p < p1; ++p) {
             if (p >= end) {
                 add(v, key, box);
@@ -105,13 +121,23 @@ void main() {
                 }
             }
             vec3 t = vec3(dot(u_R0, m), dot(u_R1, m), dot(u_R2, m)) + u_T;
-            float z = max(t.z, u_near);
-            float tx = clamp(t.x / z, u_frustum.x, u_frustum.z), ty = clamp(t.y / z, u_frustum.y, u_frustum.w);
-            float s = u_gain / z * sqrt(1.0 + tx * tx + ty * ty) * largest[g];
-            float reach = 3.0 * sqrt(s * s + 0.3) + 1.0;
-            vec2 uv = u_focal * t.xy / z + u_principal;
-            box.xy = min(box.xy, ivec2(clamp(floor(uv - reach), -lim, lim + u_viewport)));
-            box.zw = max(box.zw, ivec2(clamp(ceil(uv + reach) + 1.0, -lim, lim + u_viewport)));
+            vec2 c;
+            vec3 cov;
+            float det, r2, o, shape;
+            if (!(t.z > u_near) || !footprint(g, t, c, cov, det, r2, o, shape)) continue;  // culled: draws nothing
+            r2 *= CLIP_INFLATE;
+            vec4 b = u_clip;  // the part of the ellipse in the rectangle: x over its rows, then y over its columns
+            for (int i = 0; i < 2; ++i) {
+                vec2 x = band_extent(c.x, c.y, cov.x, cov.y, cov.z, det, r2, b.y, b.w);
+                b.x = max(b.x, x.x);
+                b.z = min(b.z, x.y);
+                vec2 y = band_extent(c.y, c.x, cov.z, cov.y, cov.x, det, r2, b.x, b.z);
+                b.y = max(b.y, y.x);
+                b.w = min(b.w, y.y);
+            }
+            if (b.x > b.z || b.y > b.w) continue;  // it misses the rectangle
+            box.xy = min(box.xy, ivec2(floor(b.xy)) - 1);
+            box.zw = max(box.zw, ivec2(ceil(b.zw)) + 2);
         }
         add(v, key, box);
     }

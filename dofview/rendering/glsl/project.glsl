@@ -49,13 +49,12 @@ float camera_depth(vec3 mean) {
     return z;
 }
 
-// False when Gaussian g is culled: behind the near plane, degenerate, below tau everywhere or
-// off screen.
-bool project_gaussian(uint g, out Footprint f) {
-    vec3 mean = load_mean(g);
-    vec3 t = vec3(dot(u_R0, mean), dot(u_R1, mean), dot(u_R2, mean)) + u_T;
-    if (!(t.z > u_near)) return false;
-
+// The footprint of Gaussian g whose mean lies at t (camera space, t.z > u_near): its centre p
+// (pixels, y down), blurred 2D covariance (sxx, sxy, syy) px², det, support bound r2 on
+// dᵀΣ⁻¹d, opacity o' and kernel shape; false when it is degenerate or below tau everywhere.
+// (layer_plan's plan_stats.comp measures the sliced mode's boxes with it.)
+bool footprint(uint g, vec3 t, out vec2 p, out vec3 cov, out float det, out float r2, out float o,
+               out float shape) {
     // EWA: Sigma2 = J W Sigma W^T J^T with Sigma = M M^T, M = R(q) S, so Sigma2 = P P^T with the
     // 2x3 P = J W M. Keeping the factor makes det(Sigma2) = |p0 x p1|^2: no cancellation even for
     // needle-like or vanishing Gaussians. t.xy/t.z is clamped to 1.3x the frame's frustum (the
@@ -75,21 +74,34 @@ bool project_gaussian(uint g, out Footprint f) {
     float syy = dot(p1, p1);
     float sxy = dot(p0, p1);
     vec3 cr = cross(p0, p1);
-    float det, beta;
+    float beta;
     float radius = coc(iz, u_aperture, u_inv_focus);
     if (!blur_footprint(sxx, syy, dot(cr, cr), radius, u_k, det, beta)) return false;
-    float shape = u_kernel == 1 ? kernel_shape(beta, det, radius, u_k) : 1.0;
+    shape = u_kernel == 1 ? kernel_shape(beta, det, radius, u_k) : 1.0;
     float f0 = 1.0, area = 1.0;
     if (shape < 1.0) disk_peak_and_area(shape, f0, area);
-    float o = normalise_opacity(load_opacity(g), beta * area, u_opacity_norm);
-    float r2;
+    o = normalise_opacity(load_opacity(g), beta * area, u_opacity_norm);
     if (!cut_splat(o, u_tau, u_cut, r2)) return false;
     if (shape < 1.0) {
         r2 = disk_support(o, u_tau, shape, f0);
         o /= f0;
     }
-    vec2 p = u_focal * t.xy * iz + u_principal;
-    vec2 ext = sqrt(r2 * vec2(sxx, syy));  // the ellipse's axis-aligned half extent
+    p = u_focal * t.xy * iz + u_principal;
+    cov = vec3(sxx, sxy, syy);
+    return true;
+}
+
+// False when Gaussian g is culled: behind the near plane, degenerate, below tau everywhere or
+// off screen.
+bool project_gaussian(uint g, out Footprint f) {
+    vec3 mean = load_mean(g);
+    vec3 t = vec3(dot(u_R0, mean), dot(u_R1, mean), dot(u_R2, mean)) + u_T;
+    if (!(t.z > u_near)) return false;
+    vec2 p;
+    vec3 cov;
+    float det, r2, o, shape;
+    if (!footprint(g, t, p, cov, det, r2, o, shape)) return false;
+    vec2 ext = sqrt(r2 * cov.xz);  // the ellipse's axis-aligned half extent
     if (p.x + ext.x < 0.0 || p.x - ext.x > u_viewport.x || p.y + ext.y < 0.0 || p.y - ext.y > u_viewport.y)
         return false;
 
@@ -99,6 +111,6 @@ bool project_gaussian(uint g, out Footprint f) {
 #endif
     colour = max(colour, 0.0);
     if (u_blend_linear) colour = pow(colour, vec3(2.2));
-    f = Footprint(p, sxx, sxy, syy, det, r2, o, t.z, colour, shape);
+    f = Footprint(p, cov.x, cov.y, cov.z, det, r2, o, t.z, colour, shape);
     return true;
 }
