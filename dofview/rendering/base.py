@@ -195,9 +195,8 @@ class Renderer(ABC):
         self._buffers, self.scene = buffers, scene
         self.stats.total = scene.count
         self._order_key = None
-        if self._sliced is not None:  # it keeps per-Gaussian data of the scene it was made for
-            self._sliced.release()
-            self._sliced = None
+        # the sliced mode keeps nothing of the old scene (its plan's buffers grow with the count),
+        # so its programs and targets stay
         self._scene_swapped(order)
 
     def _scene_swapped(self, order: tuple[Camera, np.ndarray] | None) -> None:
