@@ -21,9 +21,10 @@ clamp). Front to back, each layer is blended by the backend as a pinhole with th
    once the run ends;
 4. a reduced layer's highlights (slices.highlights): slice_prepare.frag appends each pixel of the
    layer's blocks whose brightness stands out of its neighbourhood to a sprite list (at most
-   SliceRule.sprites of the frame's pixels: a layer's highlights are counted first and appended
-   all or none, sprite_accept.comp, so that no order of the GPU's chooses; those of a layer that
-   does not fit stay in its gather) and takes that light out of its texel;
+   SliceRule.sprites of the frame's pixels, a layer's highlights all or none, so that no order of
+   the GPU's chooses: sprite_accept.comp keeps them if they fit in what is left of the cap, else
+   empties the layer's draw of them and has it prepared again without, so that they stay in its
+   gather) and takes that light out of its texel;
    slice_sprite.vert/.frag draw them as instanced quads, indirectly from the count the GPU wrote
    (no read-back), each the gather's kernel at full resolution at the pixel's own CoC, into
    sprite targets that slice_upsample.frag adds to the layer's image. Such a layer is a run of
@@ -159,6 +160,7 @@ class SlicedDof:
         self._sprite = sprite, ctx.vertex_array(sprite, [])
         self._sprite_list = ctx.buffer(reserve=SPRITE_HEADER)  # slice_prepare.frag's Sprites: sized per frame
         self._sprite_draw = ctx.buffer(reserve=16)  # a layer's indirect draw of its sprites
+        self._again = ctx.buffer(reserve=16)  # the indirect draw of a refused layer's prepare without highlights
         self._upsample = program("slice_upsample.frag")
         self._resolve = program("slice_resolve.frag")
         self._size: tuple[int, int] | None = None
@@ -227,7 +229,7 @@ class SlicedDof:
         if self._size is None:
             return 0
         w, h = self._size
-        own = (5 * 16 + 16 + 4) * w * h + self._sprite_list.size + self._sprite_draw.size
+        own = (5 * 16 + 16 + 4) * w * h + self._sprite_list.size + self._sprite_draw.size + self._again.size
         for level in self._levels.values():
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
@@ -386,7 +388,8 @@ class SlicedDof:
         empty); the slice target is cleared in ``box`` once read. ``sprites``: the frame's cap of
         sprites, for which the prepare also takes the layer's highlights out into the sprite list,
         and their count into :attr:`_sprite_draw` (0: no highlights): all of them if they fit in
-        what is left of the cap, else none (counted first, sprite_accept.comp; slices.highlights).
+        what is left of the cap, else none (sprite_accept.comp, then the prepare again without
+        highlights, drawn indirectly only then; slices.highlights).
         Returns the level's blocks."""
         s = layer.scale
         self.acc_depth.bind_to_image(0, read=True, write=True)
@@ -412,7 +415,7 @@ class SlicedDof:
         uniforms = {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
-                    "u_rmax": layer.radius / s, "u_sprites": sprites > 0, "u_count": False}
+                    "u_rmax": layer.radius / s, "u_sprites": sprites > 0, "u_cap": max(sprites, 0)}
         textures = [colour, depth, self._norms, self.slice_colour, self.slice_depth]
         if sprites > 0:  # the highlights' uniforms, and this layer's draw of none so far
             self._sprite_draw.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
@@ -420,13 +423,17 @@ class SlicedDof:
             self._sprite_draw.bind_to_storage_buffer(1)
             uniforms.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
                              "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim})
-            # counted first, then drawn all or none: the GPU's order must not choose which
-            self._pass(prog, vao, level.prepared, {**uniforms, "u_count": True}, textures, region)
+        self._pass(prog, vao, level.prepared, uniforms, textures, region)
+        if sprites > 0:
+            # drawn all or none (the GPU's order must not choose which): a layer whose highlights
+            # do not fit in what is left of the cap is prepared again without them
             self.ctx.memory_barrier()
+            self._again.write(np.array([3, 0, 0, 0], np.uint32).tobytes())
+            self._again.bind_to_storage_buffer(2)
             self._accept["u_cap"].value = sprites
             self._accept.run(1)
             self.ctx.memory_barrier()
-        self._pass(prog, vao, level.prepared, uniforms, textures, region)
+            self._pass(prog, vao, level.prepared, {**uniforms, "u_sprites": False}, textures, region, again=True)
         # (cleared only now: the highlights are taken from the full-resolution layer)
         self._clear(self.slice_fbo, box)
         return region
@@ -501,10 +508,12 @@ class SlicedDof:
             fbo.clear(0.0, 0.0, 0.0, 0.0, viewport=(box[0], box[1], box[2] - box[0], box[3] - box[1]))
 
     def _pass(self, prog: moderngl.Program, vao: moderngl.VertexArray, fbo: moderngl.Framebuffer,
-              uniforms: dict[str, object], textures: list[moderngl.Texture], box: Box, blend: bool = False) -> None:
+              uniforms: dict[str, object], textures: list[moderngl.Texture], box: Box, blend: bool = False,
+              again: bool = False) -> None:
         """One full-screen pass of ``prog`` into ``fbo`` reading ``textures`` at units 0, 1, …,
         limited to ``box`` (target pixels, GL rows); ``blend``: front to back behind what ``fbo``
-        holds (ONE_MINUS_DST_ALPHA, ONE)."""
+        holds (ONE_MINUS_DST_ALPHA, ONE); ``again``: drawn only if sprite_accept.comp refused the
+        layer's highlights (indirectly, from the count it wrote: no read-back)."""
         if box[2] <= box[0] or box[3] <= box[1]:
             return
         for unit, tex in enumerate(textures):
@@ -519,7 +528,10 @@ class SlicedDof:
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = moderngl.ONE_MINUS_DST_ALPHA, moderngl.ONE
             ctx.blend_equation = moderngl.FUNC_ADD
-        vao.render(moderngl.TRIANGLES, vertices=3)
+        if again:
+            vao.render_indirect(self._again, moderngl.TRIANGLES, count=1)
+        else:
+            vao.render(moderngl.TRIANGLES, vertices=3)
         if blend:
             ctx.disable(moderngl.BLEND)
         ctx.scissor = None
@@ -543,6 +555,7 @@ class SlicedDof:
             prog.release()
         self._sprite_list.release()
         self._sprite_draw.release()
+        self._again.release()
         self._visible.release()
         self._occupancy.release()
         self._linear.release()

@@ -769,8 +769,8 @@ def highlights(colour: np.ndarray, depth_sums: np.ndarray, lens: Lens, layer: La
     with its visible coverage third, GL orientation): every pixel with a share
     (:func:`highlight_share`) > 0 and blending weight, in raster order (rows from the bottom); none
     if there are more than ``budget`` (what is left of the frame's cap: a layer's highlights are
-    drawn all or none, as slice_prepare.frag counts them first, so that no order of the GPU's
-    chooses among them)."""
+    drawn all or none, as sprite_accept.comp keeps or refuses those slice_prepare.frag appended, so
+    that no order of the GPU's chooses among them)."""
     s = layer.scale
     level = colour
     for _ in range(s.bit_length() - 1):

@@ -10,9 +10,10 @@
 // full-resolution pixel of the texel's block whose brightness stands out of the mean of the 8
 // texels around it (slices.highlight_share) is appended, with its share f of the pixel's light, to
 // the sprite list (slice_sprite.vert draws them), and that share is taken out of the texel with
-// the weight the 2 × 2 averages gave the pixel. A layer takes all its highlights or none: a pass
-// with u_count first counts them (sprite_accept.comp then accepts the layer if they fit in what
-// is left of the frame's cap), so that which are drawn does not follow the GPU's order.
+// the weight the 2 × 2 averages gave the pixel. A layer takes all its highlights or none, so that
+// which are drawn does not follow the GPU's order: they are appended as if they fit, then
+// sprite_accept.comp keeps them if they fit in what is left of the frame's cap, or else draws
+// none and has this pass drawn again without highlights (the layer as it was, u_sprites false).
 
 uniform sampler2D u_colour;
 uniform sampler2D u_depth;
@@ -33,13 +34,11 @@ uniform ivec4 u_region;        // the level's texels the layer was reduced into 
 uniform float u_bright;        // SliceRule.bright
 uniform float u_excess;        // SliceRule.excess
 uniform float u_dim;           // SliceRule.dim
-uniform bool u_count;          // only count the layer's highlights (nothing written)
+uniform uint u_cap;            // sprites the list holds (the frame's cap): beyond, not written
 
 layout(std430, binding = 0) buffer Sprites {
     uint taken;       // sprites of the layers accepted so far this frame
-    uint asked;       // the layer's highlights, counted by the u_count pass
-    uint accepted;    // whether they fit in the frame's cap (sprite_accept.comp)
-    uint pad;
+    uint pad[3];
     vec4 sprite[];    // per sprite: colour (blend space, premultiplied), then (x, y, ρ, visible)
 };
 layout(std430, binding = 1) buffer Draw {  // the sprites' indirect draw: this layer's instance count
@@ -102,7 +101,6 @@ void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
     // for rounding). This skips the block on all but the few texels that may hold a highlight.
     float none_below = max(u_dim, kb > 0.0 ? min(kb, mean + u_excess) : 0.0);
     if (brightness(colour) * float(u_scale * u_scale) <= 0.999 * none_below) return;
-    if (!u_count && accepted == 0u) return;  // the layer's highlights did not fit: they stay in the gather
     ivec2 full = textureSize(u_full_colour, 0);
     ivec2 lo = p * u_scale, hi = min(lo + u_scale, full);
     vec4 gone = vec4(0.0), gone_depth = vec4(0.0);
@@ -117,11 +115,8 @@ void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
             if (f <= 0.0) continue;
             vec4 d = texelFetch(u_full_depth, ivec2(x, y), 0);
             if (d.w <= 0.0) continue;
-            if (u_count) {
-                atomicAdd(asked, 1u);
-                continue;
-            }
-            uint i = atomicAdd(instances, 1u);
+            uint i = atomicAdd(instances, 1u);  // all of them counted, those beyond the list not kept:
+            if (i >= u_cap) continue;           // the layer is then refused (sprite_accept.comp)
             float coc = 0.5 * u_aperture * (d.y / d.w - u_inv_focus);
             float rmax = u_rmax * float(u_scale);
             sprite[2u * i] = f * c;
@@ -144,7 +139,6 @@ void main() {
     vec4 colour = texelFetch(u_colour, p, 0);
     vec4 depth = colour.a > 0.0 ? texelFetch(u_depth, p, 0) : vec4(0.0);
     if (u_sprites && colour.a > 0.0) take_highlights(p, colour, depth);
-    if (u_count) discard;
     float rho = 0.0;
     if (u_blur && depth.w > 0.0) {
         float c = 0.5 * u_aperture * (depth.y / depth.w - u_inv_focus);
