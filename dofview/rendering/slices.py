@@ -19,8 +19,8 @@ pixel's light is kept exactly; at |c| < ½ it is the identity.
 
 The guard band: a layer blurred by c px takes light from up to c px beyond the frame. Where a
 layer's Gaussians reach beyond the frame (:func:`screen_boxes`, cut to the widest band), the
-layers are blended into an image extended on every side (Camera.guarded: the frustum clamp stays the
-frame's, so every footprint is the pinhole's) by what their blurs need (:func:`guard_band`: in
+layers are blended into an image extended on every side (Camera.guarded: the frustum clamp stays
+the frame's, so every footprint is the pinhole's) by what their blurs need (:func:`guard_band`: in
 steps doubling from 32 px, at most an eighth of the frame's larger side), each layer within its
 own reach of the frame (:func:`layer_windows`). Beyond what was rendered the gather repeats the
 edge only on the sides where the layer goes on (:func:`layer_edges`: a wall stays opaque to the
@@ -376,8 +376,8 @@ def screen_boxes(scene, order: np.ndarray, camera: Camera, lens: Lens, settings:
     rectangle (footprint.clip_boxes), and a pixel of margin; :data:`NO_BOX` for an empty slice.
     A splat near the lens can be an ellipse thousands of pixels wide whose box covers the frame
     while it draws in a corner of it or nowhere: boxes of whole footprints (or, as before, of 3σ
-    of the largest scale) made a room's layers work on 2–5 times the pixels they draw in. Float64 (glsl/plan_stats.comp is the float32 twin:
-    within a pixel)."""
+    of the largest scale) made a room's layers work on 2–5 times the pixels they draw in.
+    Float64 (glsl/plan_stats.comp is the float32 twin: within a pixel)."""
     w, h = camera.width, camera.height
     k = max(len(bounds) - 3, 0)
     out = np.tile(np.array(NO_BOX, np.int64), (k, 1))
