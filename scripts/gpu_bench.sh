@@ -50,11 +50,13 @@ for f in sorted(out.glob("*.json")):
     if f.name == "summary.json":
         continue
     for r in json.loads(f.read_text())["rows"]:
-        summary["rows"].append({"file": f.name, **{k: r[k] for k in ("scene", "backend", "dof", "aperture", "median_ms",
-                                                                   "p90_ms", "p99_ms", "fps", "ratio", "gpu_bytes", "pairs")}})
+        summary["rows"].append({"file": f.name, **{k: r.get(k) for k in ("scene", "backend", "dof", "aperture", "median_ms",
+                                                                       "p90_ms", "p99_ms", "host_ms", "layers", "fps", "ratio",
+                                                                       "gpu_bytes", "pairs")}})
 (out / "summary.json").write_text(json.dumps(summary, indent=1))
 for r in summary["rows"]:
     print(f"{r['file']:28s} {r['scene']:12s} {r['backend']:8s} {r['dof']:7s} A={r['aperture']:5g} {r['median_ms']:8.2f} ms "
-          f"p99 {r['p99_ms']:8.2f} ms {r['fps']:7.1f} FPS ×{r['ratio']:.2f}")
+          f"p99 {r['p99_ms']:8.2f} ms host {r['host_ms']:7.2f} ms {r['layers']:3d} layers {r['fps']:7.1f} FPS "
+          f"×{r['ratio']:.2f}")
 print("peak GPU memory used (MiB):", summary["peak_gpu_memory_used_mib"])
 PY

@@ -211,6 +211,20 @@ def test_the_planning_benchmark_times_both_plans_and_checks_they_agree(capsys):
     assert np.all(big.means[n:2 * n, 0] > scene.means[:, 0])  # the copies side by side
 
 
+def test_the_backends_benchmark_reports_each_frames_host_time_and_layers():
+    """bench.backends (scripts/gpu_bench.sh's measure) gives, beside the frame time, the calling
+    thread's CPU time issuing the frame (on a GPU, a sliced frame whose host time nears its frame
+    time is bound by the CPU's O(layers) work) and the sliced mode's layers: one at A = 0."""
+    from dofview.bench import synth
+    from dofview.bench.backends import measure
+
+    rows = measure("random", synth.random_scene(2000, seed=1), synth.benchmark_camera(64, 48), 6.0, (0.0, 100.0), 1)
+    assert [(r["backend"], r["aperture"]) for r in rows] == [("quad", 0.0), ("compute", 0.0), ("quad", 100.0),
+                                                             ("compute", 100.0)]
+    assert all(r["host_ms"] > 0 and r["median_ms"] > 0 for r in rows)
+    assert [r["layers"] for r in rows[:2]] == [1, 1] and all(r["layers"] > 1 for r in rows[2:])
+
+
 def test_a_layers_box_is_where_its_splats_draw():
     """In a room with splats at the lens (sliced_study.indoor_scene: leaves 0.12–0.45 units away,
     floaters), a layer's window (what every pass after its blend works on) holds every pixel its

@@ -175,6 +175,27 @@ def test_the_kernel_norm_tables_interpolate_to_within_a_thousandth(blades):
             assert np.max(np.abs(got - exact) / exact) < 1e-3
 
 
+@pytest.mark.parametrize("blades", [0, 5])
+def test_taps_are_every_offset_the_kernel_reaches_nearest_first_and_made_once(blades):
+    """LensCell.taps is cached (a sliced frame asks for it per layer, every frame) and read-only;
+    what it holds is the definition worked out here offset by offset: every integer offset where a
+    source of |ρ| = radius in front of or behind focus has weight, and the centre, ordered by
+    distance, then y, then x; for the aperture and for a refinement cell seen off-centre."""
+    for cell in (Aperture(blades, 0.3).whole(), lens_cells(16, blades)[5]):
+        for radius in (0.0, 0.4, 1.0, 2.7, 6.0, 8.5):
+            taps = cell.taps(radius)
+            assert cell.taps(radius) is taps and not taps.flags.writeable
+            n = math.ceil(cell.reach * radius + 1.5) + 2
+            want = []
+            for y in range(-n, n + 1):
+                for x in range(-n, n + 1):
+                    d = np.array([[x, y]], np.float32)
+                    if (x, y) == (0, 0) or max(cell.weights(d, np.float32(radius))[0],
+                                               cell.weights(d, np.float32(-radius))[0]) > 0:
+                        want.append((math.hypot(x, y), y, x))
+            assert [(x, y) for _, y, x in sorted(want)] == [tuple(t) for t in taps.astype(int).tolist()]
+
+
 def test_bladed_kernel_is_the_polygon_turned_in_front_of_focus():
     r = 8.0
     hexagon = aperture_kernel(r, blades=6)

@@ -4,7 +4,10 @@ Whole frames during an orbit (the view turns by :data:`ORBIT_STEP_DEG` every fra
 sorts: the quad backend on the CPU plus an upload, the compute backend on the GPU), draw + display
 pass, wall clock after ``glFinish``. The backends take turns frame by frame (interleaved), so that
 the load of a shared machine hits both alike; the ratio compute/quad is taken from one run.
-Reports per backend, scene and aperture: median, p90 and p99 frame time, FPS, the GPU bytes the
+Reports per backend, scene and aperture: median, p90 and p99 frame time, FPS, the median CPU time
+of the calling thread while it issues a frame (``host_ms``: time.thread_time up to the final
+glFinish; a frame whose host time nears its frame time is bound by the CPU, not the GPU; on
+llvmpipe it includes the rasteriser's work on that thread), the sliced mode's layers, the GPU bytes the
 renderer holds afterwards (scene buffers, per-Gaussian buffers, the pair buffers at their peak) and
 for the compute backend the (tile, Gaussian) pairs. Results as JSON and a PNG plot.
 """
@@ -85,22 +88,26 @@ def measure(label: str, scene: GaussianScene, camera: Camera, focus: float, aper
         for a in apertures:
             lens = Lens(focus, a)
             times: list[list[float]] = [[] for _ in renderers]
+            host: list[list[float]] = [[] for _ in renderers]
             for i in range(frames + 1):  # frame 0 warms up
                 cam = orbit(camera, focus, ORBIT_STEP_DEG * (i + 1))
                 turn = renderers[i % 2:] + renderers[:i % 2]  # who goes first alternates
                 for r in turn:
                     ctx.finish()
-                    t0 = time.perf_counter()
+                    t0, c0 = time.perf_counter(), time.thread_time()
                     r.draw(cam, lens, settings)
                     r.tonemap_to(r.display_fbo, viewport, Tonemap())
+                    c1 = time.thread_time()
                     ctx.finish()
                     if i:
                         times[renderers.index(r)].append((time.perf_counter() - t0) * 1e3)
+                        host[renderers.index(r)].append((c1 - c0) * 1e3)
                 bar.update(len(rows) // len(renderers) + i + 1, info=f"A={a:g}")
-            for r, t in zip(renderers, times):
+            for r, t, c in zip(renderers, times, host):
                 med = float(np.median(t))
                 rows.append({"scene": label, "count": scene.count, "size": [camera.width, camera.height],
                              "backend": r.name, "dof": settings.dof, "aperture": a, "median_ms": med,
+                             "host_ms": float(np.median(c)), "layers": len(r.sliced_layers),
                              "p90_ms": float(np.percentile(t, 90)), "p99_ms": float(np.percentile(t, 99)),
                              "fps": 1e3 / med, "gpu_bytes": r.gpu_bytes, "bytes_per_gaussian": r.bytes_per_gaussian,
                              "pairs": getattr(r, "pairs", None), "tile": getattr(r, "tile", None),

@@ -89,5 +89,6 @@ def set_uniforms(program: moderngl.Program, values: dict[str, object]) -> None:
     """Set the uniforms ``program`` uses (the compiler drops unused ones, so a shared set of values
     serves programs that read only part of it)."""
     for name, value in values.items():
-        if name in program:
-            program[name].value = value
+        member = program.get(name, None)  # (`name in program` walks every member)
+        if member is not None:
+            member.value = value

@@ -22,7 +22,7 @@ from dofview.lens import Lens
 from dofview.rendering.base import DrawOrder, Renderer
 from dofview.rendering.deep_gpu import DeepWalk, passes, walk_take
 from dofview.rendering.depth_order import front_to_back, order_key
-from dofview.rendering.gl import compute_shader, load_shader
+from dofview.rendering.gl import compute_shader, load_shader, set_uniforms
 from dofview.rendering.gpu_sort import GpuRadixSort, groups
 from dofview.rendering.sort_thread import SortThread
 from dofview.rendering.uniforms import set_projection_uniforms
@@ -226,10 +226,8 @@ class ABuffer:
         ``rows`` (from the top, end exclusive) only."""
         b = self.backend
         set_projection_uniforms(program, camera, lens, settings)
-        for name, value in (("u_count", False), ("u_first", 0), ("u_n", b.scene.count),
-                            ("u_size", (camera.width, camera.height)), ("u_row0", rows[0])):
-            if name in program:
-                program[name].value = value
+        set_uniforms(program, {"u_count": False, "u_first": 0, "u_n": b.scene.count,
+                               "u_size": (camera.width, camera.height), "u_row0": rows[0]})
         if self._fbo is None or self._fbo.size != (camera.width, camera.height):
             if self._fbo is not None:
                 self._fbo.release()

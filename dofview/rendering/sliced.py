@@ -88,6 +88,9 @@ SPRITE_HEADER = 16
 highlights and whether they are drawn, padded)."""
 SPRITE_BYTES = 32
 """Bytes of one sprite: its colour and (x, y, ρ, visible), two vec4 (slice_prepare.frag)."""
+_NO_SPRITES = np.array([4, 0, 0, 0], np.uint32).tobytes()  # a draw of 4 vertices, 0 instances
+_NOT_AGAIN = np.array([3, 0, 0, 0], np.uint32).tobytes()  # a draw of 3 vertices, 0 instances
+_UNSET = object()
 
 
 @functools.lru_cache(maxsize=512)  # 32 KB each: a refinement stage of 256 lens cells at two ranges
@@ -96,6 +99,18 @@ def _norm_tables(cell: LensCell, span: float) -> bytes:
     made once per cell and range: the whole aperture's cell is one object per aperture
     (Aperture.whole) and refinement's cells one per stage (progressive.lens_cells)."""
     return np.concatenate([cell.norms(NORM_FINE), cell.norms(span)]).tobytes()
+
+
+@functools.lru_cache(maxsize=1024)  # as LensCell.taps: a frame's layers, and a refinement stage's cells
+def _tap_uniform(cell: LensCell, radius: float) -> tuple[bytes, int, int]:
+    """The gather's u_tap array for sources of |ρ| ≤ ``radius`` level px (LensCell.taps), the number
+    of taps and their reach (level px)."""
+    taps = cell.taps(radius)
+    if len(taps) > MAX_TAPS:
+        raise DofviewError(f"a kernel of {len(taps)} taps exceeds the sliced mode's {MAX_TAPS}")
+    data = np.zeros((MAX_TAPS, 2), np.float32)
+    data[:len(taps)] = taps
+    return data.tobytes(), len(taps), int(np.abs(taps).max())
 
 
 def _intersect(a: Box, b: Box) -> Box:
@@ -170,6 +185,8 @@ class SlicedDof:
         self._levels: dict[int, _Level] = {}
         self._norms = self._texture((NORM_SAMPLES, 4), 1)  # the kernel's N(ρ) tables (LensCell.norms)
         self._norms_for: tuple[LensCell, float] | None = None  # (cell, range) they were made for
+        self._taps_set: bytes | None = None  # the gather's taps as last written (_tap_uniform)
+        self._written: dict[int, dict[str, object]] = {}  # per program, the uniforms _pass last set
         self._planner: GpuLayerPlan | None = None  # made by the first draw with an aperture
         self.layers: list[Layer] = []
         """The layers of the last draw (Renderer.sliced_layers)."""
@@ -295,9 +312,7 @@ class SlicedDof:
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
             r.splat_range(layer.first, layer.end, self.slice_fbo, box)
-            taps = cell.taps(layer.radius / layer.scale)
-            self._write_taps(taps)
-            reach = int(np.abs(taps).max())
+            reach = self._write_taps(cell, layer.radius / layer.scale)
             sprites = has_sprites(layer, rule, cap, sprite_frame)  # a reduced layer's highlights
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule, cap if sprites else 0)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
@@ -348,15 +363,17 @@ class SlicedDof:
         lw, lh = level.a.size
         return max(box[0] - n, 0), max(box[1] - n, 0), min(box[2] + n, lw), min(box[3] + n, lh)
 
-    def _write_taps(self, taps: np.ndarray) -> None:
-        """Set the gather's taps (slice_kernel.glsl: two offsets a vector)."""
-        if len(taps) > MAX_TAPS:
-            raise DofviewError(f"a kernel of {len(taps)} taps exceeds the sliced mode's {MAX_TAPS}")
-        data = np.zeros((MAX_TAPS, 2), np.float32)
-        data[:len(taps)] = taps
-        prog = self._gather[0]
-        prog["u_tap"].write(data.tobytes())
-        prog["u_taps"].value = len(taps)
+    def _write_taps(self, cell: LensCell, radius: float) -> int:
+        """Set the gather's taps (slice_kernel.glsl: two offsets a vector) for sources of |ρ| ≤
+        ``radius`` level px of ``cell``'s kernel, unless they are set already; returns their reach
+        (level px)."""
+        data, count, reach = _tap_uniform(cell, radius)
+        if self._taps_set is not data:
+            prog = self._gather[0]
+            prog["u_tap"].write(data)
+            prog["u_taps"].value = count
+            self._taps_set = data
+        return reach
 
     def _set_cell(self, cell: LensCell, radius: float) -> None:
         """Set the kernel of the gather and of the sprites (slice_kernel.glsl), and the tables of its
@@ -418,7 +435,7 @@ class SlicedDof:
                     "u_rmax": layer.radius / s, "u_sprites": sprites > 0, "u_cap": max(sprites, 0)}
         textures = [colour, depth, self._norms, self.slice_colour, self.slice_depth]
         if sprites > 0:  # the highlights' uniforms, and this layer's draw of none so far
-            self._sprite_draw.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
+            self._sprite_draw.write(_NO_SPRITES)
             self._sprite_list.bind_to_storage_buffer(0)
             self._sprite_draw.bind_to_storage_buffer(1)
             uniforms.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
@@ -428,7 +445,7 @@ class SlicedDof:
             # drawn all or none (the GPU's order must not choose which): a layer whose highlights
             # do not fit in what is left of the cap is prepared again without them
             self.ctx.memory_barrier()
-            self._again.write(np.array([3, 0, 0, 0], np.uint32).tobytes())
+            self._again.write(_NOT_AGAIN)
             self._again.bind_to_storage_buffer(2)
             self._accept["u_cap"].value = sprites
             self._accept.run(1)
@@ -518,8 +535,11 @@ class SlicedDof:
             return
         for unit, tex in enumerate(textures):
             tex.use(unit)
+        written = self._written.setdefault(prog.glo, {})
         for name, value in uniforms.items():
-            prog[name].value = value
+            if written.get(name, _UNSET) != value:  # most are the frame's, or the last layer's
+                prog[name].value = value
+                written[name] = value
         ctx = self.ctx
         fbo.use()
         ctx.viewport = (0, 0, *fbo.size)

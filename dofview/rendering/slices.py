@@ -588,10 +588,14 @@ class LensCell:
 
     def gl(self) -> tuple[np.ndarray, np.ndarray]:
         """``point`` (2,) and ``planes`` (P, 3) float32 in GL orientation (y upwards), as the shaders use them."""
+        return self._gl
+
+    @functools.cached_property
+    def _gl(self) -> tuple[np.ndarray, np.ndarray]:
         flip = np.array([1.0, -1.0])
         pl = np.array(self.planes, np.float64).reshape(-1, 3)
-        return ((self.point * flip).astype(np.float32),
-                np.concatenate([pl[:, :2] * flip, pl[:, 2:]], 1).astype(np.float32))
+        return _frozen((self.point * flip).astype(np.float32)), _frozen(
+            np.concatenate([pl[:, :2] * flip, pl[:, 2:]], 1).astype(np.float32))
 
     def weights(self, d: np.ndarray, rho: np.ndarray) -> np.ndarray:
         """(T, …) float32 w(d, ρ) of offsets ``d`` (T, 2) px, GL orientation, for sources of
@@ -621,13 +625,32 @@ class LensCell:
 
     def taps(self, radius: float) -> np.ndarray:
         """(T, 2) float32 the offsets (GL orientation) where the kernel of a source of |ρ| ≤
-        ``radius`` px has weight, nearest first (the kernels of smaller |ρ| lie inside)."""
-        n = int(math.ceil(self.reach * max(radius, 0.0) + 1.5))
-        dy, dx = np.mgrid[-n:n + 1, -n:n + 1]
-        d = np.stack([dx.ravel(), dy.ravel()], 1).astype(np.float32)
-        reach = np.max(self.weights(d, np.array([radius, -radius], np.float32)), axis=1) > 0
-        d = d[reach | np.all(d == 0, axis=1)]
-        return d[np.lexsort((d[:, 0], d[:, 1], np.hypot(d[:, 0], d[:, 1])))]
+        ``radius`` px has weight, nearest first (the kernels of smaller |ρ| lie inside); read-only,
+        made once per cell and radius (a sliced frame asks for them per layer, and again every
+        frame)."""
+        return _taps(self, float(radius))
+
+
+@functools.lru_cache(maxsize=4096)  # a frame's layers, for the cells of a refinement stage
+def _taps(cell: LensCell, radius: float) -> np.ndarray:
+    d = _offsets(int(math.ceil(cell.reach * max(radius, 0.0) + 1.5)))
+    reach = np.max(cell.weights(d, np.array([radius, -radius], np.float32)), axis=1) > 0
+    reach[0] = True  # the centre, whatever the cell
+    return _frozen(d[reach])
+
+
+@functools.lru_cache(maxsize=64)
+def _offsets(n: int) -> np.ndarray:
+    """(T, 2) float32 the integer offsets within ±``n`` px, nearest first (then by y, by x)."""
+    dy, dx = np.mgrid[-n:n + 1, -n:n + 1]
+    d = np.stack([dx.ravel(), dy.ravel()], 1).astype(np.float32)
+    return _frozen(d[np.lexsort((d[:, 0], d[:, 1], np.hypot(d[:, 0], d[:, 1])))])
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` made read-only: it is cached and shared."""
+    a.flags.writeable = False
+    return a
 
 
 def aperture_kernel(radius: float, blades: int = 0, rotation: float = 0.0) -> np.ndarray:
