@@ -92,6 +92,51 @@ def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
 
 
 @pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_the_gathers_tap_prefix_changes_no_bit(backend, monkeypatch):
+    """slice_gather.frag stops a tile's taps after the last one that a source within its reach can
+    give weight (slice_occupancy.comp's largest |ρ| there; sliced._tap_uniform's table of
+    LensCell.tap_onsets): every tap it skips has weight 0. Drawn with the table at every tap, the
+    frames of the disk, a 6-bladed aperture and a refinement cell are the same bit for bit; with a
+    table of one tap they are not (the table is in use). Without highlights, whose additive blend
+    follows the GPU's order."""
+    from dofview.rendering import sliced
+
+    scene = load_scene(TWO_PLANES, progress=False)
+    cam, lens = _view(scene, 16.0)
+    cases = ((0, None), (6, None), (0, lens_cells(8, 0)[3]))
+
+    def frames() -> list[np.ndarray]:
+        r = get_backend(backend, scene)
+        r.slice_rule = replace(SLICE_RULE, sprites=0.0)
+        try:
+            out = []
+            for blades, cell in cases:
+                r.draw(cam, lens, replace(SLICED, blades=blades), cell=cell)
+                out.append(np.frombuffer(r.colour_tex.read(), np.float32).copy())
+            assert len(r.sliced_layers) >= 8
+            return out
+        finally:
+            r.release()
+
+    table = sliced._tap_uniform
+    quick = frames()
+
+    def every_tap(cell, radius):
+        data, prefix, count, reach = table(cell, radius)
+        assert np.frombuffer(prefix, np.int32).min() < count or count == 1
+        return data, np.full(sliced.MAX_PREFIX, count, np.int32).tobytes(), count, reach
+
+    monkeypatch.setattr(sliced, "_tap_uniform", every_tap)
+    every = frames()
+    monkeypatch.setattr(sliced, "_tap_uniform", lambda cell, radius: (
+        table(cell, radius)[0], np.ones(sliced.MAX_PREFIX, np.int32).tobytes(), *table(cell, radius)[2:]))
+    one = frames()
+    for q, e, o in zip(quick, every, one):
+        assert np.array_equal(q, e)
+        assert not np.array_equal(q, o)
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
 def test_at_aperture_zero_sliced_is_the_pinhole(backend):
     """One layer, not blurred: the trained blend (the per-splat mode at A = 0, the frame's τ), its
     depth the pinhole's; a real lens's layers at a tiny aperture (every pixel's blur < ½ px) too."""

@@ -196,6 +196,31 @@ def test_taps_are_every_offset_the_kernel_reaches_nearest_first_and_made_once(bl
             assert [(x, y) for _, y, x in sorted(want)] == [tuple(t) for t in taps.astype(int).tolist()]
 
 
+@pytest.mark.parametrize("blades", [0, 5])
+def test_a_taps_onset_is_where_its_weight_begins(blades):
+    """LensCell.tap_onsets (the gather's table of how many taps a tile needs): no source of |ρ| ≤
+    onset, in front of focus or behind it, gives a tap weight, and one 1e-5 px beyond does (the
+    table is searched to a millionth of 8.5 px); the centre's is 0. For the aperture and for refinement cells seen off-centre,
+    whose kernels are not centred on the pixel."""
+    for cell in (Aperture(blades, 0.3).whole(), lens_cells(16, blades)[5], lens_cells(4, blades)[1]):
+        for radius in (0.7, 3.0, 8.5):
+            taps, onsets = cell.taps(radius), cell.tap_onsets(radius)
+            assert onsets.shape == (len(taps),) and onsets[0] == 0.0 and np.all(onsets[1:] > 0)
+            assert cell.tap_onsets(radius) is onsets
+            rows = np.arange(len(taps))
+
+            def weight(a: np.ndarray) -> np.ndarray:  # each tap's weight at its own |ρ| = a, either side
+                w = np.maximum(cell.weights(taps, a.astype(np.float32)), cell.weights(taps, -a.astype(np.float32)))
+                return w[rows, rows]
+
+            assert np.all(weight(onsets)[1:] == 0)
+            assert np.all(weight(onsets * np.float32(0.5))[1:] == 0)
+            assert np.all(weight(np.minimum(onsets + 1e-5, radius)) > 0)
+            for a in np.linspace(0.0, radius, 41)[1:]:  # whatever has weight at a lies before
+                w = weight(np.full(len(taps), a))
+                assert np.all(onsets[w > 0] < a)
+
+
 def test_bladed_kernel_is_the_polygon_turned_in_front_of_focus():
     r = 8.0
     hexagon = aperture_kernel(r, blades=6)

@@ -83,6 +83,11 @@ MAX_TAPS = 256
 largest radius at a level is the rule's limit + 2, 8 with blades)."""
 MAX_PLANES = 80
 """Size of the shaders' half-plane array: a 64-bladed aperture and 16 neighbouring lens cells."""
+PREFIX_STEPS = 8
+"""Steps per level px of slice_gather.frag's table of how many taps a tile needs, by the largest
+|ρ| of the sources within its reach (slice_occupancy.comp)."""
+MAX_PREFIX = 80
+"""Size of that table: |ρ| up to 10 level px (the largest at a level is 8.5)."""
 SPRITE_HEADER = 16
 """Bytes before the sprite list's records (the frame's count of sprites drawn, the layer's count of
 highlights and whether they are drawn, padded)."""
@@ -102,15 +107,23 @@ def _norm_tables(cell: LensCell, span: float) -> bytes:
 
 
 @functools.lru_cache(maxsize=1024)  # as LensCell.taps: a frame's layers, and a refinement stage's cells
-def _tap_uniform(cell: LensCell, radius: float) -> tuple[bytes, int, int]:
-    """The gather's u_tap array for sources of |ρ| ≤ ``radius`` level px (LensCell.taps), the number
-    of taps and their reach (level px)."""
+def _tap_uniform(cell: LensCell, radius: float) -> tuple[bytes, bytes, int, int]:
+    """The gather's u_tap array for sources of |ρ| ≤ ``radius`` level px (LensCell.taps), its
+    u_prefix table, the number of taps and their reach (level px).
+
+    u_prefix[k] is how many of the taps (nearest first) a pixel needs whose sources within reach
+    all have |ρ| < (k + 1)/PREFIX_STEPS: one past the last tap of onset (LensCell.tap_onsets) up to
+    that, so that every tap such a source gives weight is among them (the last entry: all)."""
     taps = cell.taps(radius)
     if len(taps) > MAX_TAPS:
         raise DofviewError(f"a kernel of {len(taps)} taps exceeds the sliced mode's {MAX_TAPS}")
     data = np.zeros((MAX_TAPS, 2), np.float32)
     data[:len(taps)] = taps
-    return data.tobytes(), len(taps), int(np.abs(taps).max())
+    bounds = (np.arange(MAX_PREFIX) + 1.0) / PREFIX_STEPS
+    needed = cell.tap_onsets(radius)[None, :] <= bounds[:, None]
+    prefix = np.max(np.where(needed, np.arange(1, len(taps) + 1), 0), axis=1).astype(np.int32)
+    prefix[-1] = len(taps)
+    return data.tobytes(), prefix.tobytes(), len(taps), int(np.abs(taps).max())
 
 
 def _intersect(a: Box, b: Box) -> Box:
@@ -135,7 +148,7 @@ class _Level:
     depth: moderngl.Texture | None
     reduced: moderngl.Framebuffer | None
     run: moderngl.Framebuffer | None
-    occupied: moderngl.Texture  # per 8 × 8 tile of the level: light within the gather's reach
+    occupied: moderngl.Texture  # per 8 × 8 tile of the level: the largest |ρ| within the gather's reach (−1: none)
     dirty: Box | None = None  # what the last prepare wrote (level pixels)
 
     def textures(self) -> list[moderngl.Texture]:
@@ -159,7 +172,9 @@ class SlicedDof:
         def program(frag: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
             prog = ctx.program(vertex_shader=load_shader("fullscreen.vert"),
                                fragment_shader=load_shader(frag, {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES,
-                                                                  "NORM_SAMPLES": NORM_SAMPLES, "NORM_FINE": repr(NORM_FINE)}))
+                                                                  "NORM_SAMPLES": NORM_SAMPLES, "NORM_FINE": repr(NORM_FINE),
+                                                                  "MAX_PREFIX": MAX_PREFIX,
+                                                                  "PREFIX_STEPS": repr(float(PREFIX_STEPS))}))
             return prog, ctx.vertex_array(prog, [])
 
         self._visible = compute_shader(ctx, "slice_visible.comp")
@@ -367,10 +382,11 @@ class SlicedDof:
         """Set the gather's taps (slice_kernel.glsl: two offsets a vector) for sources of |ρ| ≤
         ``radius`` level px of ``cell``'s kernel, unless they are set already; returns their reach
         (level px)."""
-        data, count, reach = _tap_uniform(cell, radius)
+        data, prefix, count, reach = _tap_uniform(cell, radius)
         if self._taps_set is not data:
             prog = self._gather[0]
             prog["u_tap"].write(data)
+            prog["u_prefix"].write(prefix)
             prog["u_taps"].value = count
             self._taps_set = data
         return reach
@@ -492,14 +508,17 @@ class SlicedDof:
     def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int, edges: Edges) -> None:
         """slice_gather.frag over ``out`` (level pixels), blended behind what ``target`` holds,
         repeating the level's edge beyond the sides ``edges`` names, after slice_occupancy.comp has
-        marked its tiles that light within ``reach`` texels reaches."""
+        found for each of its tiles the largest |ρ| of the light within ``reach`` texels (none: the
+        tile is left at once; else only the taps such light can reach are visited)."""
         if out[2] <= out[0] or out[3] <= out[1]:
             return
         occ = self._occupancy
         tiles = (out[0] // 8, out[1] // 8, -(-out[2] // 8), -(-out[3] // 8))
         level.occupied.bind_to_image(0, read=False, write=True)
         level.a.use(0)
+        level.b.use(1)
         occ["u_a"].value = 0
+        occ["u_b"].value = 1
         occ["u_tiles"].value = tiles
         occ["u_reach"].value = reach
         occ.run(-(-(tiles[2] - tiles[0]) // 8), -(-(tiles[3] - tiles[1]) // 8))

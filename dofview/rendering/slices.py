@@ -524,6 +524,9 @@ NORM_SAMPLES = 2048
 NORM_FINE = 2.0
 """|ρ| (level px) up to which slice_prepare.frag reads N(ρ) from a fine table: where N is small,
 its kinks (every tap's ramp starts and ends) weigh most against it."""
+LEVEL_RADIUS = 8.5
+"""The largest blur radius (px) a layer has at its level (plan_layers: the rule's limit + 2, 8 with
+blades, and a little more), for which each cell's LensCell.tap_onsets are made at once."""
 
 
 @dataclass(frozen=True)
@@ -600,17 +603,41 @@ class LensCell:
     def weights(self, d: np.ndarray, rho: np.ndarray) -> np.ndarray:
         """(T, …) float32 w(d, ρ) of offsets ``d`` (T, 2) px, GL orientation, for sources of
         signed CoC ``rho`` (…) px (slice_kernel.glsl is the twin); ρ = 0 is the identity."""
-        point, planes = self.gl()
         rho = np.asarray(rho, np.float32)
-        a = np.abs(rho)[None]
-        sgn = np.where(rho < 0, np.float32(-1.0), np.float32(1.0))[None]
         ex = (slice(None),) + (None,) * rho.ndim
-        vx = a * point[0] - sgn * np.asarray(d[:, 0], np.float32)[ex]  # |ρ|·u in px, u = point − d/ρ
-        vy = a * point[1] - sgn * np.asarray(d[:, 1], np.float32)[ex]
+        return self._weight(np.asarray(d[:, 0], np.float32)[ex], np.asarray(d[:, 1], np.float32)[ex], rho[None])
+
+    def _weight(self, dx: np.ndarray, dy: np.ndarray, rho: np.ndarray) -> np.ndarray:
+        """w of offsets (``dx``, ``dy``) for sources of signed CoC ``rho``, float32 arrays broadcast
+        together."""
+        point, planes = self.gl()
+        a = np.abs(rho)
+        sgn = np.where(rho < 0, np.float32(-1.0), np.float32(1.0))
+        vx = a * point[0] - sgn * dx  # |ρ|·u in px, u = point − d/ρ
+        vy = a * point[1] - sgn * dy
         sd = np.sqrt(vx * vx + vy * vy) - a if self.disk else np.full(np.broadcast(vx, a).shape, -np.inf, np.float32)
         for nx, ny, h in planes:
             sd = np.maximum(sd, vx * nx + vy * ny - a * h)
         return np.clip(np.float32(0.5) - sd, 0.0, 1.0).astype(np.float32)
+
+    def onsets(self, taps: np.ndarray, radius: float) -> np.ndarray:
+        """(T,) float32 for each offset of ``taps`` (T, 2) px, GL orientation, that sources of
+        |ρ| = ``radius`` px reach: a |ρ| below which no source, in front of focus or behind it,
+        gives it weight (w(d, ±a) = 0 for every a ≤ onset; 0 for the centre), within a millionth
+        of ``radius`` of the least such. A kernel's signed distance never grows with |ρ| (u_point lies in the
+        cell), so the offsets a source of |ρ| ≤ a can reach are those of onset < a: the gather of
+        a tile whose sources are all that sharp stops at the first tap beyond (sliced.py)."""
+        d = np.asarray(taps, np.float32)
+        lo, hi = np.zeros(len(d), np.float32), np.full(len(d), np.float32(radius))
+
+        def reached(a: np.ndarray) -> np.ndarray:
+            return np.maximum(self._weight(d[:, 0], d[:, 1], a), self._weight(d[:, 0], d[:, 1], -a)) > 0
+
+        for _ in range(20):  # lo: no weight at |ρ| ≤ lo (or the centre's 0); hi: weight
+            mid = ((lo + hi) * np.float32(0.5)).astype(np.float32)
+            hit = reached(mid)
+            hi, lo = np.where(hit, mid, hi), np.where(hit, lo, mid)
+        return np.where(reached(np.zeros(len(d), np.float32)), np.float32(0.0), lo).astype(np.float32)
 
     def norms(self, radius: float, samples: int = NORM_SAMPLES) -> np.ndarray:
         """(2, samples) float32 the kernel's N(ρ) = Σ_taps w(d, ρ) at ρ = radius·i/(samples − 1),
@@ -628,15 +655,41 @@ class LensCell:
         ``radius`` px has weight, nearest first (the kernels of smaller |ρ| lie inside); read-only,
         made once per cell and radius (a sliced frame asks for them per layer, and again every
         frame)."""
-        return _taps(self, float(radius))
+        return _taps(self, float(radius))[0]
+
+    def tap_onsets(self, radius: float) -> np.ndarray:
+        """(T,) float32 :meth:`onsets` of :meth:`taps` (``radius``), made once per cell and grid of
+        candidate offsets."""
+        return _taps(self, float(radius))[1]
 
 
 @functools.lru_cache(maxsize=4096)  # a frame's layers, for the cells of a refinement stage
-def _taps(cell: LensCell, radius: float) -> np.ndarray:
-    d = _offsets(int(math.ceil(cell.reach * max(radius, 0.0) + 1.5)))
+def _taps(cell: LensCell, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    n = int(math.ceil(cell.reach * max(radius, 0.0) + 1.5))
+    d = _offsets(n)
     reach = np.max(cell.weights(d, np.array([radius, -radius], np.float32)), axis=1) > 0
     reach[0] = True  # the centre, whatever the cell
-    return _frozen(d[reach])
+    return _frozen(d[reach]), _frozen(_grid_onsets(cell, n)[reach])
+
+
+def _grid_onsets(cell: LensCell, n: int) -> np.ndarray:
+    """LensCell.onsets of every offset of :func:`_offsets` (``n``), looked up in the cell's table
+    (made once for the taps of the largest blur a layer has at its level, or for ``n`` beyond)."""
+    big = max(n, int(math.ceil(cell.reach * LEVEL_RADIUS + 1.5)))
+    d = _offsets(n).astype(np.int64)
+    return _onset_table(cell, big)[d[:, 1] + big, d[:, 0] + big]
+
+
+@functools.lru_cache(maxsize=1024)  # the cells of a refinement stage
+def _onset_table(cell: LensCell, n: int) -> np.ndarray:
+    """(2n + 1, 2n + 1) float32 LensCell.onsets of every offset within ±``n`` px, at [y + n, x + n],
+    up to the largest radius whose taps that grid holds (an offset no such source reaches gets that
+    radius)."""
+    d = _offsets(n)
+    table = np.empty((2 * n + 1, 2 * n + 1), np.float32)
+    table[d[:, 1].astype(np.int64) + n, d[:, 0].astype(np.int64) + n] = cell.onsets(
+        d, max((n - 1.5) / max(cell.reach, 1e-6), 0.0))
+    return _frozen(table)
 
 
 @functools.lru_cache(maxsize=64)

@@ -11,18 +11,22 @@
 uniform sampler2D u_a;  // colour / N(ρ)
 uniform sampler2D u_b;  // (ρ, visible coverage / N(ρ))
 uniform bvec4 u_edge;   // repeat the edge beyond (left, bottom, right, top)
-uniform sampler2D u_occupied;  // per 8 × 8 tile: any light within reach (slice_occupancy.comp)
+uniform sampler2D u_occupied;  // per 8 × 8 tile: the largest |ρ| within reach, −1: no light (slice_occupancy.comp)
+uniform int u_prefix[MAX_PREFIX];  // taps needed where every |ρ| < (k + 1)/PREFIX_STEPS (sliced._tap_uniform)
 
 layout(location = 0) out vec4 out_colour;
 layout(location = 1) out vec4 out_visible;
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    if (texelFetch(u_occupied, p >> 3, 0).r == 0.0) discard;  // nothing of the layer reaches here
+    float widest = texelFetch(u_occupied, p >> 3, 0).r;
+    if (widest < 0.0) discard;  // nothing of the layer reaches here
+    // the taps beyond are nearer no source in reach than its kernel's edge: their weight is 0
+    int taps = min(u_prefix[min(int(widest * PREFIX_STEPS), MAX_PREFIX - 1)], u_taps);
     ivec2 last = textureSize(u_a, 0) - 1;
     vec4 sum = vec4(0.0);
     float visible = 0.0;
-    for (int i = 0; i < u_taps; ++i) {
+    for (int i = 0; i < taps; ++i) {
         vec2 d = tap(i);
         ivec2 q = p - ivec2(d);
         bvec4 beyond = bvec4(q.x < 0, q.y < 0, q.x > last.x, q.y > last.y);

@@ -1,14 +1,16 @@
 #version 430
-// Sliced depth of field, per layer, at its level, before its gather: which 8 × 8 tiles of the
-// gather can receive light, i.e. hold a texel of the prepared layer with coverage within u_reach
-// of them (the image's edge texels stand for what the gather repeats beyond it), so that
-// slice_gather.frag leaves the others at once. Exact: a texel without coverage carries no colour
-// (premultiplied) and no visible part. A layer is a thin depth range of the scene: most of its box
-// is empty.
+// Sliced depth of field, per layer, at its level, before its gather: for each 8 × 8 tile of the
+// gather, the largest |ρ| of the prepared layer's texels with coverage within u_reach of it (the
+// image's edge texels stand for what the gather repeats beyond it), or −1 where there is none, so
+// that slice_gather.frag leaves such tiles at once and stops the others' taps where their sources'
+// kernels end. Exact: a texel without coverage carries no colour (premultiplied) and no visible
+// part. A layer is a thin depth range of the scene: most of its box is empty, and within it the
+// blur changes little from one tile to the next.
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(r32f, binding = 0) uniform writeonly image2D u_occupied;
 uniform sampler2D u_a;   // the prepared layer: colour / N(ρ)
+uniform sampler2D u_b;   // and (ρ, visible / N(ρ))
 uniform ivec4 u_tiles;   // (x0, y0, x1, y1) tiles, ends exclusive
 uniform int u_reach;     // the taps' largest offset along an axis, texels
 
@@ -18,14 +20,11 @@ void main() {
     ivec2 last = textureSize(u_a, 0) - 1;
     ivec2 lo = clamp(t * 8 - u_reach, ivec2(0), last);
     ivec2 hi = clamp(t * 8 + 7 + u_reach, ivec2(0), last);
-    float lit = 0.0;
-    for (int y = lo.y; y <= hi.y && lit == 0.0; ++y) {
+    float widest = -1.0;
+    for (int y = lo.y; y <= hi.y; ++y) {
         for (int x = lo.x; x <= hi.x; ++x) {
-            if (texelFetch(u_a, ivec2(x, y), 0).a > 0.0) {
-                lit = 1.0;
-                break;
-            }
+            if (texelFetch(u_a, ivec2(x, y), 0).a > 0.0) widest = max(widest, abs(texelFetch(u_b, ivec2(x, y), 0).r));
         }
     }
-    imageStore(u_occupied, t, vec4(lit));
+    imageStore(u_occupied, t, vec4(widest));
 }
