@@ -21,8 +21,8 @@ void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     float widest = texelFetch(u_occupied, p >> 3, 0).r;
     if (widest < 0.0) discard;  // nothing of the layer reaches here
-    // the taps beyond are nearer no source in reach than its kernel's edge: their weight is 0
-    int taps = min(u_prefix[min(int(widest * PREFIX_STEPS), MAX_PREFIX - 1)], u_taps);
+    // every tap past the table's count lies beyond the kernel of each source in reach: weight 0
+    int taps = min(u_prefix[clamp(int(widest * PREFIX_STEPS), 0, MAX_PREFIX - 1)], u_taps);
     ivec2 last = textureSize(u_a, 0) - 1;
     vec4 sum = vec4(0.0);
     float visible = 0.0;
