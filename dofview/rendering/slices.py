@@ -624,9 +624,10 @@ class LensCell:
         """(T,) float32 for each offset of ``taps`` (T, 2) px, GL orientation, that sources of
         |ρ| = ``radius`` px reach: a |ρ| below which no source, in front of focus or behind it,
         gives it weight (w(d, ±a) = 0 for every a ≤ onset; 0 for the centre), within a millionth
-        of ``radius`` of the least such. A kernel's signed distance never grows with |ρ| (u_point lies in the
-        cell), so the offsets a source of |ρ| ≤ a can reach are those of onset < a: the gather of
-        a tile whose sources are all that sharp stops at the first tap beyond (sliced.py)."""
+        of ``radius`` of the least such. A kernel's signed distance never grows with |ρ|
+        (``point`` lies in the cell), so the offsets a source of |ρ| ≤ a can reach are those of
+        onset < a: the gather of a tile whose sources are all that sharp stops at the first tap
+        beyond (sliced.py)."""
         d = np.asarray(taps, np.float32)
         lo, hi = np.zeros(len(d), np.float32), np.full(len(d), np.float32(radius))
 
