@@ -5,7 +5,12 @@ given (no wall-clock assertion)."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -132,3 +137,23 @@ def test_model_times_the_pinhole_again_once_the_view_rests():
         assert model.progressive.samples == 2  # then the refinement goes on
     finally:
         model.close()
+
+
+def test_the_focus_drag_benchmark_drives_the_viewer_as_a_slider_does(tmp_path):
+    """scripts/viewer_budget.py --drag focus (what scripts/gpu_bench.sh runs at 1M and 6M): the
+    viewer's model, headless, with its focus moved every frame across the depths in view, reports
+    each frame's time and host time, the previews the interaction budget chose (one a frame) and
+    the still frame's layers; random:N scenes need no file."""
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "drag.json"
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    done = subprocess.run([sys.executable, str(root / "scripts" / "viewer_budget.py"), "random:3000", "--drag", "focus",
+                           "--width", "96", "--height", "54", "--steps", "6", "--json", str(out)],
+                          capture_output=True, text=True, cwd=root, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr
+    [row] = json.loads(out.read_text())
+    assert row["drag"] == "focus" and row["start"] == row["end"] == 3000
+    assert row["focus"][0] < row["focus"][1]  # the slider went somewhere
+    assert sum(row["previews"].values()) == 6 and row["layers"] > 1
+    assert min(row["median"], row["max"], row["host"], row["still"], row["pinhole"]) > 0
+
