@@ -247,6 +247,72 @@ def test_a_window_leaves_the_tiles_without_its_splats_as_they_were():
     np.testing.assert_array_equal(kept_depth[mine], depth[mine])
 
 
+def _listed(r: ComputeBackend) -> tuple[np.ndarray, np.ndarray]:
+    """The last window's indirect dispatch (x, y, z, tiles listed) and its list of (tile x, tile y,
+    first pair, end), in list order."""
+    command = np.frombuffer(r._command.read(), np.uint32)
+    if not command[3]:  # (GL maps no zero-sized range)
+        return command, np.zeros((0, 4), np.uint32)
+    return command, np.frombuffer(r._listed.read(size=16 * int(command[3])), np.uint32).reshape(-1, 4)
+
+
+def test_a_window_lists_exactly_the_tiles_holding_its_ranks():
+    """tiles_window.comp lists, for the blend's indirect dispatch, every tile of a window whose pairs
+    hold a rank of the range, with that part of the tile's pairs, and no other tile: checked against
+    the binned pairs read back and searched in numpy, for ranges of the order and a pixel window."""
+    scene = random_scene(seed=8)
+    r = ComputeBackend(scene, packed=False)
+    try:
+        r.sort(CAM)
+        r.prepare_splats(CAM, Lens(4.0, 60.0), RenderSettings(dof="splat"))
+        target = r.ctx.framebuffer(color_attachments=[r.ctx.texture((CAM.width, CAM.height), 4, dtype="f4")
+                                                      for _ in range(2)])
+        n, t = scene.count, r.tile
+        tx, ty = -(-CAM.width // t), -(-CAM.height // t)
+        counts = []
+        for first, end, box in ((0, n, None), (n // 3, n // 2, None), (n // 3, n // 2, (20, 10, 60, 50)),
+                                (n // 2, n // 2, None)):
+            target.clear(0.0, 0.0, 0.0, 0.0)
+            r.splat_range(first, end, target, box)
+            ranges = np.frombuffer(r._ranges.read(), np.uint32).reshape(ty, tx, 2)
+            vals = np.frombuffer(r._vals.read(size=4 * r.pairs), np.uint32)
+            x0, y0, x1, y1 = box or (0, 0, CAM.width, CAM.height)
+            want = set()
+            for y in range(min(CAM.height - y1, CAM.height) // t, -(-(CAM.height - y0) // t)):  # GL rows of tiles
+                for x in range(x0 // t, -(-x1 // t)):
+                    lo, hi = ranges[y, x]
+                    a, b = lo + np.searchsorted(vals[lo:hi], [first, end])
+                    if b > a:
+                        want.add((x, y, int(a), int(b)))
+            command, listed = _listed(r)
+            assert {tuple(int(v) for v in e) for e in listed} == want and len(listed) == len(want)
+            assert tuple(command) == (min(len(want), 65535), -(-len(want) // 65535), 1, len(want))
+            counts.append(len(want))
+        # every tile holds some of the whole order; a part of it holds fewer, in a window fewer still
+        assert counts[0] == tx * ty > counts[1] > counts[2] > counts[3] == 0
+        target.release()
+    finally:
+        r.release()
+
+
+def test_more_listed_tiles_than_one_dispatch_row():
+    """A window of more tiles holding pairs than one dimension of a dispatch takes (65 535): the list
+    is spread over a 2D grid, and the image is the quad backend's (1-pixel tiles, 300 × 240)."""
+    cam = _pixel_camera(300, 240)
+    scene = _one([0.05, -0.02, 1.0], [3.0, 2.0, 0.1], opacity=0.6)
+    lens = Lens(1.0, 0.0)
+    c = ComputeBackend(scene, packed=False, tile=1, pix=1)
+    try:
+        frame = c.render(cam, lens)
+        command, listed = _listed(c)
+    finally:
+        c.release()
+    assert command[3] == cam.width * cam.height > 65535 and tuple(command[:3]) == (65535, 2, 1)
+    assert len({(int(e[0]), int(e[1])) for e in listed}) == cam.width * cam.height
+    assert frame.alpha.min() > 0.4  # every pixel blended, those on the last row of the grid too
+    assert_same_image(frame, QuadBackend(scene, packed=False).render(cam, lens), min_db=60.0)
+
+
 def test_refusals_are_clear_errors(monkeypatch):
     scene = _one([0, 0, 1.0], [3.0, 3.0, 0.1])
     with pytest.raises(DofviewError, match="covers more than 10 tiles"):

@@ -5,7 +5,8 @@ and a radix sort, gpu_sort.py) → preprocess, one thread per Gaussian (project.
 projection, CoC and opacity normalisation; the support box → a rectangle of tiles) → count
 and scan the tiles each Gaussian touches, in depth order → duplicate one (tile, Gaussian) pair per
 touched tile → stable radix sort by tile (the depth order survives within each tile) → each tile's
-range → blend each tile front to back in one workgroup (lens.glsl's alpha, float32, early stop at
+range → list the tiles that hold some of the range of the order being drawn → blend each listed
+tile front to back in one workgroup, dispatched indirectly (lens.glsl's alpha, float32, early stop at
 T < 1e-4) straight into the Renderer's colour/depth targets. Only the pair count comes back to the
 CPU (a 4-byte total per 256 Gaussians), to size the pair buffers (on llvmpipe also the longest tile's length, see
 :data:`LLVMPIPE_RUN`). A frame whose pairs exceed the storage-buffer limit is drawn in depth slices,
@@ -48,6 +49,7 @@ LLVMPIPE_RUN = 60_000
 65535 iterations in all (a pass takes LLVMPIPE_RUN / (pix² + 1) splats of a tile; a longer tile
 is blended in passes)."""
 SPLAT_BYTES = 48  # glsl/splat_record.glsl: Splat
+_NO_TILES = np.array([0, 0, 1, 0], np.uint32).tobytes()  # a dispatch of no workgroups, none listed
 PER_GAUSSIAN_BYTES = SPLAT_BYTES + 8 + 4 + 4  # splat, tile rectangle, order, tile count (= depth key)
 """GPU bytes per Gaussian that this backend adds to the scene's buffers (besides the pair buffers)."""
 
@@ -105,6 +107,7 @@ class ComputeBackend(Renderer):
         self._dup = compute_shader(self.ctx, "tiles_duplicate.comp", tile_def)
         self._ranges_prog = compute_shader(self.ctx, "tiles_ranges.comp")
         self._longest_prog = compute_shader(self.ctx, "tiles_longest.comp")
+        self._window = compute_shader(self.ctx, "tiles_window.comp")
         self._blend = compute_shader(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u",
                                                               **({"KERNEL_SELECT": 1} if llvmpipe else {})})
         self._capacity = 0
@@ -113,6 +116,8 @@ class ComputeBackend(Renderer):
         self._pairs: list[moderngl.Buffer] = []  # tile keys, values, and the two sort scratch buffers
         self._pair_capacity = 0
         self._ranges: moderngl.Buffer | None = None
+        self._listed: moderngl.Buffer | None = None  # a window's tiles holding pairs (tiles_window.comp)
+        self._command = self.ctx.buffer(reserve=16)  # the blend's indirect dispatch over them, and their count
         self.pairs = 0
         """(tile, Gaussian) pairs of the last draw."""
         self.slices = 0
@@ -128,9 +133,10 @@ class ComputeBackend(Renderer):
 
     @property
     def gpu_bytes(self) -> int:
-        """Bytes of GPU storage: the scene's buffers, the per-Gaussian buffers and the pair
-        buffers as now allocated (they grow to the largest frame drawn)."""
-        own = (self._order, self._splats, self._rects, self._offsets, self._group_totals, *self._pairs)
+        """Bytes of GPU storage: the scene's buffers, the per-Gaussian buffers, and the pair and
+        per-tile buffers as now allocated (they grow to the largest frame drawn)."""
+        tiled = (b for b in (self._ranges, self._listed) if b is not None)
+        own = (self._order, self._splats, self._rects, self._offsets, self._group_totals, *self._pairs, *tiled)
         deep = self._deep_walk.gpu_bytes if self._deep_walk is not None else 0  # (after a deep image)
         return super().gpu_bytes + sum(b.size for b in own) + self.sorter.gpu_bytes + deep
 
@@ -303,11 +309,14 @@ class ComputeBackend(Renderer):
         return slices
 
     def _ranges_for(self, tiles: tuple[int, int]) -> None:
+        """Each tile's range of pairs, and the list of a window's tiles (:meth:`_blend_window`)."""
         size = 8 * tiles[0] * tiles[1]
         if self._ranges is None or self._ranges.size != size:
-            if self._ranges is not None:
-                self._ranges.release()
+            for buf in (self._ranges, self._listed):
+                if buf is not None:
+                    buf.release()
             self._ranges = self.ctx.buffer(reserve=size)
+            self._listed = self.ctx.buffer(reserve=2 * size)
 
     def _bin(self, first: int, end: int, base: int, pairs: int) -> None:
         """Duplicate and sort the pairs of Gaussians [first, end) of the depth order (pairs from
@@ -344,29 +353,37 @@ class ComputeBackend(Renderer):
     def _blend_window(self, first: int, end: int, target: moderngl.Framebuffer,
                       tiles: tuple[int, int, int, int], pixels: tuple[int, int, int, int], resume: bool) -> None:
         """Blend the binned pairs of ranks [first, end) into ``target``'s colour and depth-sum
-        textures, in ``tiles``, writing ``pixels`` (x0, y0, x1, y1, GL rows) of them."""
+        textures, in ``tiles``, writing ``pixels`` (x0, y0, x1, y1, GL rows) of them: the tiles
+        that hold some are listed first (tiles_window.comp) and only they are dispatched, indirectly
+        from the count the GPU wrote."""
         tx0, ty0, tx1, ty1 = tiles
         if tx1 <= tx0 or ty1 <= ty0:
             return
+        self._command.write(_NO_TILES)
+        w = self._window
+        w["u_tiles"].value = tiles
+        w["u_tiles_x"].value = self._tiles[0]
+        w["u_window"].value = (first, end)
+        self._vals.bind_to_storage_buffer(1)
+        self._ranges.bind_to_storage_buffer(2)
+        self._listed.bind_to_storage_buffer(5)
+        self._command.bind_to_storage_buffer(6)
+        w.run(-(-(tx1 - tx0) // 8), -(-(ty1 - ty0) // 8))
+        self.ctx.memory_barrier()
         colour, depth = target.color_attachments[:2]
         colour.bind_to_image(0, read=True, write=True)
         depth.bind_to_image(1, read=True, write=True)
         b = self._blend
         b["u_tau"].value = self._tau
         b["u_box"].value = pixels
-        b["u_tiles_x"].value = self._tiles[0]
-        b["u_window"].value = (first, end)
-        b["u_tile_origin"].value = (tx0, ty0)
         take, longest = self._passes or (None, 1)
         b["u_take"].value = take or 0xFFFFFFFF
         for skip in range(0, longest, take or 1):
             b["u_skip"].value = skip
             b["u_resume"].value = resume or skip > 0
             self._splats.bind_to_storage_buffer(0)
-            self._vals.bind_to_storage_buffer(1)
-            self._ranges.bind_to_storage_buffer(2)
             self._order.bind_to_storage_buffer(3)
-            b.run(tx1 - tx0, ty1 - ty0)
+            b.run_indirect(self._command)
             self.ctx.memory_barrier()
 
     def _longest_range(self, tiles: tuple[int, int]) -> int:
@@ -419,8 +436,9 @@ class ComputeBackend(Renderer):
 
     def _release_backend(self) -> None:
         for obj in (self._order, self._splats, self._rects, self._offsets, self._group_totals,
-                    self._longest, *self._pairs, self._ranges, self._keys_prog, self._pre, self._count, self._dup,
-                    self._ranges_prog, self._longest_prog, self._blend, self._deep_prog, self._deep_walk):
+                    self._longest, *self._pairs, self._ranges, self._listed, self._command, self._keys_prog, self._pre,
+                    self._count, self._dup, self._ranges_prog, self._longest_prog, self._window, self._blend,
+                    self._deep_prog, self._deep_walk):
             if obj is not None:
                 obj.release()
         self.sorter.release()

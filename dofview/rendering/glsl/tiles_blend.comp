@@ -1,15 +1,15 @@
 #version 430
-// Compute rasteriser, step 5: one workgroup per TILE x TILE tile, each thread blending a PIX x PIX
-// block of pixels (one load of a splat serves PIX^2 pixels), the tile's splats front to back in
-// float32 (lens.glsl: splat_alpha, the same alpha, clamp and cuts as quads.frag), stopping once
-// the block's transmittance has fallen below T_MIN everywhere. Writes the Renderer targets:
-// premultiplied colour and coverage, and (sum w z, sum w / z, 0, sum w), w = alpha T. With
+// Compute rasteriser, step 5: one workgroup per listed tile (tiles_window.comp: the tiles of a
+// window holding splats of a range of ranks, with their part of the tile's pairs), each thread
+// blending a PIX x PIX block of pixels (one load of a splat serves PIX^2 pixels), the tile's splats
+// front to back in float32 (lens.glsl: splat_alpha, the same alpha, clamp and cuts as quads.frag),
+// stopping once the block's transmittance has fallen below T_MIN everywhere. Writes the Renderer
+// targets: premultiplied colour and coverage, and (sum w z, sum w / z, 0, sum w), w = alpha T. With
 // u_resume the targets already hold the nearer part of the scene (a depth slice or an earlier
-// pass) and blending continues from them. Only the splats of ranks [u_window.x, u_window.y) of
-// the depth order are blended (a depth slice of the sliced mode; tile lists hold ranks, in order),
-// in the tiles from u_tile_origin on, and only the pixels of u_box (a depth slice's window: what
-// lies beyond stays as it was, as do the tiles that hold none of its splats). GROUP (threads along
-// a side) and PIX are #defined.
+// pass) and blending continues from them. Only the pixels of u_box are written (a depth slice's
+// window: what lies beyond stays as it was, as do the tiles that hold none of its splats).
+// Dispatched indirectly with tiles_window.comp's command. GROUP (threads along a side) and PIX are
+// #defined.
 layout(local_size_x = GROUP, local_size_y = GROUP) in;
 
 #include "lens.glsl"
@@ -17,44 +17,33 @@ layout(local_size_x = GROUP, local_size_y = GROUP) in;
 
 layout(std430, binding = 0) readonly buffer Splats { Splat splats[]; };
 layout(std430, binding = 1) readonly buffer TileVals { uint tile_vals[]; };
-layout(std430, binding = 2) readonly buffer Ranges { uvec2 ranges[]; };
 layout(std430, binding = 3) readonly buffer Order { uint order[]; };
+layout(std430, binding = 5) readonly buffer Listed { uvec4 listed[]; };  // (tile x, tile y, first pair, end)
+layout(std430, binding = 6) readonly buffer Command { uvec4 command; };  // w: tiles listed
 layout(rgba32f, binding = 0) uniform image2D u_colour;
 layout(rgba32f, binding = 1) uniform image2D u_depth;
 uniform float u_tau;
 uniform ivec4 u_box;  // (x0, y0, x1, y1) pixels written, GL rows, ends exclusive
-uniform uint u_tiles_x;
 uniform bool u_resume;
 uniform uint u_skip;
 uniform uint u_take;
-uniform uvec2 u_window;
-uniform uvec2 u_tile_origin;
 
 const float T_MIN = 1e-4;
 const uint TILE = GROUP * PIX;
 const int N = int(PIX * PIX);
 
-// The first place in tile_vals[lo, hi) (ascending) holding a rank ≥ rank.
-uint lower_bound(uint lo, uint hi, uint rank) {
-    while (lo < hi) {
-        uint mid = (lo + hi) / 2u;
-        if (tile_vals[mid] < rank) lo = mid + 1u; else hi = mid;
-    }
-    return lo;
-}
+#include "dispatch.glsl"
 
 void main() {
-    uvec2 tile = gl_WorkGroupID.xy + u_tile_origin;
-    uvec2 range = ranges[tile.y * u_tiles_x + tile.x];
-    range.x = lower_bound(range.x, range.y, u_window.x);
-    range.y = lower_bound(range.x, range.y, u_window.y);
+    uint index = group_index();
+    if (index >= command.w) return;  // the 2D grid's last row runs past the list
+    uvec4 entry = listed[index];
+    uvec2 tile = entry.xy, range = entry.zw;
     // A pass blends at most u_take splats of the tile from the u_skip-th on (llvmpipe ends an
     // invocation's loops after 65535 iterations in all, so a longer tile is blended in passes).
     range.x = min(range.y, range.x + u_skip);
     range.y = range.x + min(range.y - range.x, u_take);
-    // No splat of the window in this tile: its pixels keep what they hold (the caller cleared
-    // them, or an earlier pass wrote them), so nothing is loaded or stored (a layer of the sliced
-    // mode has splats in only part of its window's tiles: docs/BENCHMARKS.md, "Cost in rooms")
+    // Nothing left for this pass: the tile's pixels keep what the earlier passes wrote
     if (range.x == range.y) return;
     ivec2 first = ivec2(tile * TILE + gl_LocalInvocationID.xy * PIX);
     ivec2 px[N];
