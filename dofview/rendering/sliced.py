@@ -533,9 +533,13 @@ class SlicedDof:
         level, box = run
         if box is not None:
             prog, vao = self._upsample
+            self._linear.use(0)  # the run's accumulators, filtered bilinearly
+            self._linear.use(1)
             self._pass(prog, vao, self.frame_fbo,
                        {"u_over": 0, "u_visible": 1, "u_sprites": 2, "u_sprite_visible": 3, "u_scale": level.scale},
                        [*level.run.color_attachments, self.sprite_colour, self.sprite_visible], box, blend=True)
+            self._linear.clear(0)
+            self._linear.clear(1)
             self._clear(self.sprite_fbo, box)
         run.clear()
 
