@@ -91,6 +91,41 @@ def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
     assert psnr(gl.rgba, ref.rgba) >= MIN_PSNR
 
 
+@pytest.mark.parametrize("scale", [2, 4, 8, 32])
+def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):
+    """slice_reduce.frag takes 4 × 4 a pass (two 2 × 2 averages at once, the level between not
+    written) while that does not pass the level: on an image whose levels have odd sides the level equals
+    slices.reduce2 applied log2(s) times (the blocks that stick out at the far edges averaged over the texels inside), to the texture unit's
+    filtering precision (llvmpipe's bilinear fetch: about 2⁻¹⁶ relative)."""
+    scene = load_scene(CARDS, progress=False)
+    r = get_backend("quad", scene)
+    try:
+        r.draw(*_view(scene, 8.0, 48, 36), SLICED)
+        d = r._sliced
+        w, h = 202, 117  # 2 × 2 blocks stick out of the image's top; 4 × 4 ones out of the level between's right
+        d._targets(w, h)
+        rng = np.random.default_rng(scale)
+        colour = rng.uniform(0.0, 2.0, (h, w, 4)).astype(np.float32)
+        depth = rng.uniform(0.0, 5.0, (h, w, 4)).astype(np.float32)
+        d.slice_colour.write(colour.tobytes())
+        d.slice_depth.write(depth.tobytes())
+        step = 1
+        while step < scale:
+            step *= 4 if 4 * step <= scale else 2
+            d._level(step)
+        got_c, got_d, region = d._reduce_layer((0, 0, w, h), scale)
+        want_c, want_d = colour, depth
+        for _ in range(int(math.log2(scale))):
+            want_c, want_d = slices.reduce2(want_c), slices.reduce2(want_d)
+        assert region == (0, 0, -(-w // scale), -(-h // scale))
+        lw, lh = got_c.size
+        assert (lh, lw) == want_c.shape[:2]
+        np.testing.assert_allclose(np.frombuffer(got_c.read(), np.float32).reshape(lh, lw, 4), want_c, rtol=1e-4, atol=1e-5)
+        np.testing.assert_allclose(np.frombuffer(got_d.read(), np.float32).reshape(lh, lw, 4), want_d, rtol=1e-4, atol=1e-5)
+    finally:
+        r.release()
+
+
 @pytest.mark.parametrize("backend", ["quad", "compute"])
 def test_the_gathers_tap_prefix_changes_no_bit(backend, monkeypatch):
     """slice_gather.frag stops a tile's taps after the last one that a source within its reach can

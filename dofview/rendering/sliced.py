@@ -11,8 +11,9 @@ clamp). Front to back, each layer is blended by the backend as a pinhole with th
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
    accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
    the layer's visible coverage beside them;
-2. slice_reduce.frag averages it 2 × 2 down to its level 1/s and slice_prepare.frag gives each
-   texel its signed blur (the CoC of its mean inverse depth) and divides it by the kernel's N;
+2. slice_reduce.frag averages it down to its level 1/s (4 × 4 or 2 × 2 a pass) and
+   slice_prepare.frag gives each texel its signed blur (the CoC of its mean inverse depth) and
+   divides it by the kernel's N;
    the slice target is cleared after the prepare, which reads it at full resolution for step 4;
 3. slice_gather.frag spreads every texel over the kernel at its own blur (slice_kernel.glsl: the
    aperture, or a lens cell of progressive refinement), blended front to back into the frame's
@@ -313,8 +314,10 @@ class SlicedDof:
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
         for index, (layer, box, sides) in enumerate(zip(plan.layers, plan.windows, plan.edges)):
-            for step in (1 << k for k in range(1, layer.scale.bit_length())):
-                self._level(step)  # the levels the layer is averaged through
+            step = 1
+            while step < layer.scale:  # the levels the layer is averaged through (_reduce_layer)
+                step *= 4 if 4 * step <= layer.scale else 2
+                self._level(step)
             level = self._level(layer.scale)
             if run and run[0] is not level:
                 self._end_run(run)
@@ -429,19 +432,7 @@ class SlicedDof:
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
         self._run(self._visible, box)
-        colour, depth, region = self.slice_colour, self.slice_depth, box
-        prog, vao = self._reduce
-        step = 1
-        while step < s:  # average 2 × 2 down to the level
-            step *= 2
-            dest = self._levels[step]
-            region = self._blocks(region, 2)
-            self._linear.use(0)
-            self._linear.use(1)
-            self._pass(prog, vao, dest.reduced, {"u_colour": 0, "u_depth": 1}, [colour, depth], region)
-            self._linear.clear(0)
-            self._linear.clear(1)
-            colour, depth = dest.colour, dest.depth
+        colour, depth, region = self._reduce_layer(box, s)
         self._clear(level.prepared, level.dirty)
         level.dirty = region
         prog, vao = self._prepare
@@ -470,6 +461,27 @@ class SlicedDof:
         # (cleared only now: the highlights are taken from the full-resolution layer)
         self._clear(self.slice_fbo, box)
         return region
+
+    def _reduce_layer(self, box: Box, scale: int) -> tuple[moderngl.Texture, moderngl.Texture, Box]:
+        """The slice target within ``box`` (GL pixels) averaged down to the level 1/``scale``
+        (slice_reduce.frag: 4 × 4 a pass while that does not pass the level, else 2 × 2); returns
+        the level's colour and depth sums (the slice target's at scale 1) and the blocks written."""
+        colour, depth, region = self.slice_colour, self.slice_depth, box
+        prog, vao = self._reduce
+        step = 1
+        while step < scale:
+            factor = 4 if 4 * step <= scale else 2
+            step *= factor
+            dest = self._levels[step]
+            region = self._blocks(region, factor)
+            self._linear.use(0)
+            self._linear.use(1)
+            self._pass(prog, vao, dest.reduced, {"u_colour": 0, "u_depth": 1, "u_factor": factor}, [colour, depth],
+                       region)
+            self._linear.clear(0)
+            self._linear.clear(1)
+            colour, depth = dest.colour, dest.depth
+        return colour, depth, region
 
     def _sprites_for(self, cap: int) -> None:
         """A sprite list for ``cap`` sprites, none of them taken yet this frame."""

@@ -1,19 +1,44 @@
 #version 430
 // Sliced depth of field, per reduced layer (slices.reduce2 is the twin): a level of the layer's
 // colour and depth sums (with its visible coverage, slice_visible.comp) averaged 2 × 2 into the
-// next. One bilinear fetch at the corner the four texels share is their exact average (weights ½·½);
-// where the block sticks out of the level, clamping to the edge makes it the average of the texels
-// inside. The samplers filter linearly, clamped to the edge.
+// next, or with u_factor 4 twice at once (the level between is not written). One bilinear fetch
+// at the corner the four texels share is their exact average (weights ½·½); where the block
+// sticks out of the level, clamping to the edge makes it the average of the texels inside. With
+// u_factor 4 the four such averages of a texel's block are averaged in turn, over those inside
+// the level between, as two passes would (one pass costs llvmpipe a fragment per texel written,
+// and the first of the two passes wrote four times as many: docs/BENCHMARKS.md, "Cost in rooms").
+// The samplers filter linearly, clamped to the edge.
 
 uniform sampler2D u_colour;
 uniform sampler2D u_depth;
+uniform int u_factor;  // 2 or 4
 
 layout(location = 0) out vec4 out_colour;
 layout(location = 1) out vec4 out_depth;
 
 void main() {
-    vec2 size = vec2(textureSize(u_colour, 0));
-    vec2 corner = 2.0 * floor(gl_FragCoord.xy) + 1.0;
-    out_colour = textureLod(u_colour, corner / size, 0.0);
-    out_depth = textureLod(u_depth, corner / size, 0.0);
+    ivec2 n = textureSize(u_colour, 0);
+    vec2 size = vec2(n);
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    if (u_factor == 2) {
+        vec2 corner = 2.0 * vec2(p) + 1.0;
+        out_colour = textureLod(u_colour, corner / size, 0.0);
+        out_depth = textureLod(u_depth, corner / size, 0.0);
+        return;
+    }
+    ivec2 between = (n + 1) / 2;  // the size of the level between
+    vec4 colour = vec4(0.0), depth = vec4(0.0);
+    float count = 0.0;
+    for (int j = 0; j < 2; ++j) {
+        for (int i = 0; i < 2; ++i) {
+            ivec2 q = 2 * p + ivec2(i, j);  // a texel of the level between (2p itself always is)
+            if (q.x >= between.x || q.y >= between.y) continue;
+            vec2 corner = (2.0 * vec2(q) + 1.0) / size;
+            colour += textureLod(u_colour, corner, 0.0);
+            depth += textureLod(u_depth, corner, 0.0);
+            count += 1.0;
+        }
+    }
+    out_colour = colour / count;
+    out_depth = depth / count;
 }
