@@ -109,10 +109,6 @@ def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):
         depth = rng.uniform(0.0, 5.0, (h, w, 4)).astype(np.float32)
         d.slice_colour.write(colour.tobytes())
         d.slice_depth.write(depth.tobytes())
-        step = 1
-        while step < scale:
-            step *= 4 if 4 * step <= scale else 2
-            d._level(step)
         got_c, got_d, region = d._reduce_layer((0, 0, w, h), scale)
         want_c, want_d = colour, depth
         for _ in range(int(math.log2(scale))):

@@ -314,10 +314,6 @@ class SlicedDof:
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
         for index, (layer, box, sides) in enumerate(zip(plan.layers, plan.windows, plan.edges)):
-            step = 1
-            while step < layer.scale:  # the levels the layer is averaged through (_reduce_layer)
-                step *= 4 if 4 * step <= layer.scale else 2
-                self._level(step)
             level = self._level(layer.scale)
             if run and run[0] is not level:
                 self._end_run(run)
@@ -472,7 +468,7 @@ class SlicedDof:
         while step < scale:
             factor = 4 if 4 * step <= scale else 2
             step *= factor
-            dest = self._levels[step]
+            dest = self._level(step)
             region = self._blocks(region, factor)
             self._linear.use(0)
             self._linear.use(1)

@@ -4,8 +4,9 @@
 // of step 5 over them: one thread per tile here, where a blend workgroup per tile of the window
 // cost llvmpipe ~1.5 µs even for a tile with nothing to blend (a layer of the sliced mode holds
 // splats in only part of its window: docs/BENCHMARKS.md, "Cost in rooms", "Compute backend:
-// blending only the tiles a range reaches"). The command (x, y, 1) spreads the list over a 2D grid (dispatch.glsl):
-// x = min(count, MAX_GROUPS), y = ⌈count / MAX_GROUPS⌉, grown by atomicMax from (0, 0, 1, 0).
+// blending only the tiles a range reaches"). The command (x, y, 1) spreads the list over a 2D
+// grid (dispatch.glsl): x = min(count, MAX_GROUPS), y = ⌈count / MAX_GROUPS⌉, grown by atomicMax
+// from (0, 0, 1, 0).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(std430, binding = 1) readonly buffer TileVals { uint tile_vals[]; };
