@@ -18,22 +18,15 @@ layout(location = 1) out vec4 out_depth;
 
 void main() {
     ivec2 n = textureSize(u_colour, 0);
-    vec2 size = vec2(n);
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    if (u_factor == 2) {
-        vec2 corner = 2.0 * vec2(p) + 1.0;
-        out_colour = textureLod(u_colour, corner / size, 0.0);
-        out_depth = textureLod(u_depth, corner / size, 0.0);
-        return;
-    }
-    ivec2 between = (n + 1) / 2;  // the size of the level between
+    ivec2 between = (n + 1) / 2;  // the size of the next level (for u_factor 4 the one between)
+    int sub = u_factor / 2;       // 2 × 2 averages a side
     vec4 colour = vec4(0.0), depth = vec4(0.0);
     float count = 0.0;
-    for (int j = 0; j < 2; ++j) {
-        for (int i = 0; i < 2; ++i) {
-            ivec2 q = 2 * p + ivec2(i, j);  // a texel of the level between (2p itself always is)
+    for (int j = 0; j < sub; ++j) {
+        for (int i = 0; i < sub; ++i) {
+            ivec2 q = sub * ivec2(gl_FragCoord.xy) + ivec2(i, j);  // (the first always lies inside)
             if (q.x >= between.x || q.y >= between.y) continue;
-            vec2 corner = (2.0 * vec2(q) + 1.0) / size;
+            vec2 corner = (2.0 * vec2(q) + 1.0) / vec2(n);
             colour += textureLod(u_colour, corner, 0.0);
             depth += textureLod(u_depth, corner, 0.0);
             count += 1.0;
