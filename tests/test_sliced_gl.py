@@ -94,9 +94,13 @@ def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
 @pytest.mark.parametrize("scale", [2, 4, 8, 32])
 def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):
     """slice_reduce.frag takes 4 × 4 a pass (two 2 × 2 averages at once, the level between not
-    written) while that does not pass the level: on an image whose levels have odd sides the level equals
-    slices.reduce2 applied log2(s) times (the blocks that stick out at the far edges averaged over the texels inside), to the texture unit's
-    filtering precision (llvmpipe's bilinear fetch: about 2⁻¹⁶ relative)."""
+    written) while that does not pass the level, the first pass only in the tiles the layer's
+    blend marked (elsewhere the level is cleared of what an earlier layer left): on an image whose
+    levels have odd sides, light in some tiles, the level equals slices.reduce2 applied log2(s)
+    times (the blocks that stick out at the far edges averaged over the texels inside), to the
+    texture unit's filtering precision (llvmpipe's bilinear fetch: about 2⁻¹⁶ relative)."""
+    from dofview.rendering.sliced import TILE
+
     scene = load_scene(CARDS, progress=False)
     r = get_backend("quad", scene)
     try:
@@ -105,17 +109,24 @@ def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):
         w, h = 202, 117  # 2 × 2 blocks stick out of the image's top; 4 × 4 ones out of the level between's right
         d._targets(w, h)
         rng = np.random.default_rng(scale)
-        colour = rng.uniform(0.0, 2.0, (h, w, 4)).astype(np.float32)
-        depth = rng.uniform(0.0, 5.0, (h, w, 4)).astype(np.float32)
+        columns, rows = -(-w // TILE), -(-h // TILE)
+        marks = (rng.uniform(size=(rows, columns)) < 0.6).astype(np.uint32)
+        lit = np.kron(marks, np.ones((TILE, TILE), np.uint32))[:h, :w, None] > 0
+        colour = np.where(lit, rng.uniform(0.0, 2.0, (h, w, 4)), 0.0).astype(np.float32)
+        depth = np.where(lit, rng.uniform(0.0, 5.0, (h, w, 4)), 0.0).astype(np.float32)
         d.slice_colour.write(colour.tobytes())
         d.slice_depth.write(depth.tobytes())
+        first = d._level(4 if scale >= 4 else 2)  # what an earlier layer left there
+        first.reduced.clear(7.0, 7.0, 7.0, 7.0)
+        d._marks.buffer.write(marks.tobytes())
+        d._list_tiles((0, 0, w, h))
         got_c, got_d, region = d._reduce_layer((0, 0, w, h), scale)
         want_c, want_d = colour, depth
         for _ in range(int(math.log2(scale))):
             want_c, want_d = slices.reduce2(want_c), slices.reduce2(want_d)
         assert region == (0, 0, -(-w // scale), -(-h // scale))
         lw, lh = got_c.size
-        assert (lh, lw) == want_c.shape[:2]
+        assert (lh, lw) == want_c.shape[:2] and 0.3 < lit.mean() < 0.9
         np.testing.assert_allclose(np.frombuffer(got_c.read(), np.float32).reshape(lh, lw, 4), want_c, rtol=1e-4, atol=1e-5)
         np.testing.assert_allclose(np.frombuffer(got_d.read(), np.float32).reshape(lh, lw, 4), want_d, rtol=1e-4, atol=1e-5)
     finally:

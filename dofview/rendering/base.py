@@ -38,6 +38,7 @@ from dofview.errors import BackendUnavailable
 from dofview.rendering.gl import GL_REQUIRED, check_size, float32_uniform, headless_context
 from dofview.rendering.packing import colour_scale, gpu_arrays
 from dofview.rendering.slices import Layer, LensCell, SliceRule
+from dofview.rendering.tile_marks import MARKS_BINDING, TileMarks
 from dofview.scene import GaussianScene
 from dofview.tonemap import Tonemap, decode
 from dofview.tonemap.stats import Stats
@@ -106,7 +107,7 @@ class Renderer(ABC):
         self._buffers = self._upload(scene, packed, self.colour_scale)
         self.shader_defines = {"SH_DEGREE": scene.sh_degree, "SH_REST": (scene.sh_degree + 1) ** 2 - 1,
                                "FETCH": "fetch_packed.glsl" if packed else "fetch_full.glsl",
-                               "COLOUR_SCALE": repr(self.colour_scale)}
+                               "COLOUR_SCALE": repr(self.colour_scale), "MARKS_BINDING": MARKS_BINDING}
         self._display = DisplayPass(self.ctx)
         self._size: tuple[int, int] | None = None
         self.camera: Camera | None = None
@@ -281,11 +282,12 @@ class Renderer(ABC):
 
     @abstractmethod
     def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                    box: tuple[int, int, int, int] | None = None) -> None:
+                    box: tuple[int, int, int, int] | None = None, marks: TileMarks | None = None) -> None:
         """Blend Gaussians [first, end) of the front-to-back order, as :meth:`prepare_splats` set up,
         into ``target`` (colour and depth-sum attachments as :attr:`fbo`'s, camera-sized), whose
         pixels the caller cleared. ``box``: (x0, y0, x1, y1) image pixels (rows from the top, ends
-        exclusive) outside which the range writes nothing (None: anywhere)."""
+        exclusive) outside which the range writes nothing (None: anywhere). ``marks``: the tiles
+        it may write in are marked there (None: not asked)."""
 
     @abstractmethod
     def draw_order(self, camera: Camera) -> DrawOrder:

@@ -33,6 +33,7 @@ from dofview.rendering.gpu_sort import (
     max_buffer_bytes,
     require_compute,
 )
+from dofview.rendering.tile_marks import MARKS_BINDING, TileMarks
 from dofview.rendering.uniforms import set_projection_uniforms
 from dofview.scene import GaussianScene
 
@@ -107,7 +108,7 @@ class ComputeBackend(Renderer):
         self._dup = compute_shader(self.ctx, "tiles_duplicate.comp", tile_def)
         self._ranges_prog = compute_shader(self.ctx, "tiles_ranges.comp")
         self._longest_prog = compute_shader(self.ctx, "tiles_longest.comp")
-        self._window = compute_shader(self.ctx, "tiles_window.comp")
+        self._window = compute_shader(self.ctx, "tiles_window.comp", {**tile_def, "MARKS_BINDING": MARKS_BINDING})
         self._blend = compute_shader(self.ctx, "tiles_blend.comp", {"GROUP": f"{self.tile // self.pix}u", "PIX": f"{self.pix}u",
                                                               **({"KERNEL_SELECT": 1} if llvmpipe else {})})
         self._capacity = 0
@@ -223,7 +224,7 @@ class ComputeBackend(Renderer):
         self._ranges_for(self._tiles)
 
     def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                    box: tuple[int, int, int, int] | None = None) -> None:
+                    box: tuple[int, int, int, int] | None = None, marks: TileMarks | None = None) -> None:
         """Rasterise Gaussians [first, end) of the depth order into ``target``'s textures, writing
         the pixels of ``box`` (image pixels (x0, y0, x1, y1), rows from the top; None: the image).
         When all pairs fit one buffer they are made and sorted once per :meth:`prepare_splats` and
@@ -233,12 +234,19 @@ class ComputeBackend(Renderer):
         x0, y0, x1, y1 = box or (0, 0, width, height)
         pixels = (x0, height - y1, x1, height - y0)  # GL rows
         tiles = self._tile_rect(pixels)
+        w = self._window
+        w["u_mark"].value = marks is not None
+        if marks is not None:  # each listed tile marks those it shares pixels with
+            w["u_mark_size"].value = marks.size
+            w["u_mark_columns"].value = marks.columns
+            w["u_mark_tiles"].value = (pixels[0] // marks.size, pixels[1] // marks.size,
+                                       -(-pixels[2] // marks.size), -(-pixels[3] // marks.size))
         if self.pairs <= self.max_pairs:
             if not self._binned:
                 self._bin(0, self.scene.count, 0, self.pairs)
                 self._binned = True
             self.slices = 1
-            self._blend_window(first, end, target, tiles, pixels, resume=False)
+            self._blend_window(first, end, target, tiles, pixels, marks, resume=False)
             return
         if end > first:
             base = int(np.frombuffer(self._offsets.read(size=4, offset=4 * first), np.uint32)[0])
@@ -249,7 +257,7 @@ class ComputeBackend(Renderer):
         self.slices = len(slices)
         for i, (s_first, s_end, s_base, s_pairs) in enumerate(slices):
             self._bin(s_first, s_end, s_base, s_pairs)
-            self._blend_window(s_first, s_end, target, tiles, pixels, resume=i > 0)
+            self._blend_window(s_first, s_end, target, tiles, pixels, marks, resume=i > 0)
 
     def _tile_rect(self, pixels: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
         """The tiles (tx0, ty0, tx1, ty1) that cover ``pixels`` (x0, y0, x1, y1), rows of tiles and
@@ -350,12 +358,12 @@ class ComputeBackend(Renderer):
         take = self.loop_limit // (self.pix ** 2 + 1) if self.loop_limit is not None else None  # splats a pass
         self._passes = (take, self._longest_range(tiles)) if take is not None and pairs > take else None
 
-    def _blend_window(self, first: int, end: int, target: moderngl.Framebuffer,
-                      tiles: tuple[int, int, int, int], pixels: tuple[int, int, int, int], resume: bool) -> None:
+    def _blend_window(self, first: int, end: int, target: moderngl.Framebuffer, tiles: tuple[int, int, int, int],
+                      pixels: tuple[int, int, int, int], marks: TileMarks | None, resume: bool) -> None:
         """Blend the binned pairs of ranks [first, end) into ``target``'s colour and depth-sum
         textures, in ``tiles``, writing ``pixels`` (x0, y0, x1, y1, GL rows) of them: the tiles
-        that hold some are listed first (tiles_window.comp) and only they are dispatched, indirectly
-        from the count the GPU wrote."""
+        that hold some are listed first (tiles_window.comp, which marks them in ``marks`` too) and
+        only they are dispatched, indirectly from the count the GPU wrote."""
         tx0, ty0, tx1, ty1 = tiles
         if tx1 <= tx0 or ty1 <= ty0:
             return
@@ -368,6 +376,8 @@ class ComputeBackend(Renderer):
         self._ranges.bind_to_storage_buffer(2)
         self._listed.bind_to_storage_buffer(5)
         self._command.bind_to_storage_buffer(6)
+        if marks is not None:
+            marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
         w.run(-(-(tx1 - tx0) // 8), -(-(ty1 - ty0) // 8))
         self.ctx.memory_barrier()
         colour, depth = target.color_attachments[:2]

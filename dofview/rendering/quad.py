@@ -25,6 +25,7 @@ from dofview.rendering.depth_order import front_to_back, order_key
 from dofview.rendering.gl import compute_shader, load_shader, set_uniforms
 from dofview.rendering.gpu_sort import GpuRadixSort, groups
 from dofview.rendering.sort_thread import SortThread
+from dofview.rendering.tile_marks import MARKS_BINDING, TileMarks
 from dofview.rendering.uniforms import set_projection_uniforms
 from dofview.scene import GaussianScene
 
@@ -142,10 +143,20 @@ class QuadBackend(Renderer):
         p["u_count"].value = count
 
     def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
-                    box: tuple[int, int, int, int] | None = None) -> None:
+                    box: tuple[int, int, int, int] | None = None, marks: TileMarks | None = None) -> None:
         self.bind_scene()
         self._order.bind_to_storage_buffer(3)
         self._counter.bind_to_storage_buffer(4)
+        p = self.program
+        p["u_mark"].value = marks is not None
+        if marks is not None:  # each quad's first vertex marks the tiles of its bounding rectangle
+            x0, y0, x1, y1 = box or (0, 0, *target.size)
+            h = target.height
+            p["u_mark_size"].value = marks.size
+            p["u_mark_columns"].value = marks.columns
+            p["u_mark_tiles"].value = (x0 // marks.size, (h - y1) // marks.size,
+                                       -(-x1 // marks.size), -(-(h - y0) // marks.size))
+            marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
         target.use()
         self.ctx.viewport = (0, 0, *target.size)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -160,6 +171,8 @@ class QuadBackend(Renderer):
             self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=end - first)
         self.ctx.disable(moderngl.BLEND)
         self.ctx.scissor = None
+        if marks is not None:
+            p["u_mark"].value = False
 
     # ---- deep image ----------------------------------------------------------------------------
     def _deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,

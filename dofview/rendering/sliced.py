@@ -6,7 +6,11 @@ c = ½·A·(1/z − 1/d_f) px, planned on the GPU (rendering/layer_plan.py: the 
 slices.plan_frame; the CPU reads back O(layers) numbers). Every pass works in the frame extended
 by the guard band its layers need (slices.guard_band; Camera.guarded keeps the frame's frustum
 clamp). Front to back, each layer is blended by the backend as a pinhole with the frame's τ
-(:meth:`Renderer.splat_range`, within slices.layer_windows) into one reused slice target, then
+(:meth:`Renderer.splat_range`, within slices.layer_windows) into one reused slice target, marking
+the 16 × 16 tiles it may write (tile_marks.TileMarks); glsl/slice_tiles.comp lists them, as runs
+along each row for the passes drawn over them (slice_tiles.vert) and as tiles for those
+dispatched, so that the passes at full resolution below run only there (a layer fills a third to
+three quarters of its window's tiles in the shared scenes), then
 
 1. glsl/slice_visible.comp adds its depth sums under their transmittance to the depth
    accumulator (which so ends up holding the pinhole's depth: EXR Z, click-to-focus) and keeps
@@ -14,7 +18,8 @@ clamp). Front to back, each layer is blended by the backend as a pinhole with th
 2. slice_reduce.frag averages it down to its level 1/s (4 × 4 or 2 × 2 a pass) and
    slice_prepare.frag gives each texel its signed blur (the CoC of its mean inverse depth) and
    divides it by the kernel's N;
-   the slice target is cleared after the prepare, which reads it at full resolution for step 4;
+   the slice target is emptied (slice_empty.frag) after the prepare, which reads it at full
+   resolution for step 4;
 3. slice_gather.frag spreads every texel over the kernel at its own blur (slice_kernel.glsl: the
    aperture, or a lens cell of progressive refinement), blended front to back into the frame's
    accumulators ("over" colour, summed visible coverage), or for a reduced layer into its run's
@@ -42,7 +47,8 @@ processed. GPU memory (:attr:`SlicedDof.gpu_bytes`), per pixel of the guarded im
 resolution the slice colour and depth sums, the two accumulators, the depth accumulator, the
 sprite targets and the prepared layer (RGBA32F ×7, R32F and RG32F: 124 B), and per reduced level s
 the layer averaged down, prepared, and a run's accumulators (88/s² B): ≤ 154 B in all besides the
-renderer's own targets and the sprite list (32 B a sprite: 0.64 B per pixel of frame) (≈ 155 MB
+renderer's own targets, the sprite list (32 B a sprite: 0.64 B per pixel of frame) and the tiles'
+marks and lists (28 B a tile: 0.11 B per pixel) (≈ 155 MB
 per megapixel of frame without a band; the widest band, an eighth of the frame's larger side on
 every side rounded up to 32 px, makes the image about 2× the frame's pixels: 266 MB per megapixel
 of frame measured at 640×360 before the sprite targets, which add 20 B per pixel of that image).
@@ -78,6 +84,7 @@ from dofview.rendering.slices import (
     rule_for,
     sprite_cap,
 )
+from dofview.rendering.tile_marks import MARKS_BINDING, TileMarks
 
 MAX_TAPS = 256
 """Size of the shaders' tap array: a disk of up to 8.5 px at its level (slices.plan_layers: the
@@ -94,7 +101,11 @@ SPRITE_HEADER = 16
 highlights and whether they are drawn, padded)."""
 SPRITE_BYTES = 32
 """Bytes of one sprite: its colour and (x, y, ρ, visible), two vec4 (slice_prepare.frag)."""
+TILE = 16
+"""Side, px, of the tiles in which a layer's passes at full resolution run: those its blend marked
+(tile_marks.TileMarks; slice_tiles.comp)."""
 _NO_SPRITES = np.array([4, 0, 0, 0], np.uint32).tobytes()  # a draw of 4 vertices, 0 instances
+_NO_TILES = np.array([4, 0, 0, 0, 0, 0, 1, 0], np.uint32).tobytes()  # that draw, and a dispatch of none
 _NOT_AGAIN = np.array([3, 0, 0, 0], np.uint32).tobytes()  # a draw of 3 vertices, 0 instances
 _UNSET = object()
 
@@ -170,18 +181,25 @@ class SlicedDof:
         ctx = renderer.ctx
         self.ctx = ctx
 
-        def program(frag: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
-            prog = ctx.program(vertex_shader=load_shader("fullscreen.vert"),
+        def program(frag: str, vert: str = "fullscreen.vert") -> tuple[moderngl.Program, moderngl.VertexArray]:
+            prog = ctx.program(vertex_shader=load_shader(vert),
                                fragment_shader=load_shader(frag, {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES,
                                                                   "NORM_SAMPLES": NORM_SAMPLES, "NORM_FINE": repr(NORM_FINE),
                                                                   "MAX_PREFIX": MAX_PREFIX,
                                                                   "PREFIX_STEPS": repr(float(PREFIX_STEPS))}))
             return prog, ctx.vertex_array(prog, [])
 
-        self._visible = compute_shader(ctx, "slice_visible.comp")
+        tile = {"TILE": TILE, "MARKS_BINDING": MARKS_BINDING}
+        self._list = compute_shader(ctx, "slice_tiles.comp", tile)
+        self._visible = compute_shader(ctx, "slice_visible.comp", tile)
         self._accept = compute_shader(ctx, "sprite_accept.comp")
         self._occupancy = compute_shader(ctx, "slice_occupancy.comp")
         self._reduce = program("slice_reduce.frag")
+        # the passes at full resolution, drawn over the tiles a layer's blend marked
+        self._reduce_tiles = program("slice_reduce.frag", "slice_tiles.vert")
+        self._prepare_tiles = program("slice_prepare.frag", "slice_tiles.vert")
+        self._empty_tiles = program("slice_empty.frag", "slice_tiles.vert")
+        self._tile_commands = ctx.buffer(reserve=32)  # slice_tiles.comp's indirect draw and dispatch
         self._linear = ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
         self._prepare = program("slice_prepare.frag")
         self._gather = program("slice_gather.frag")
@@ -236,6 +254,10 @@ class SlicedDof:
         self.sprite_fbo = fb(color_attachments=[self.sprite_colour, self.sprite_visible])
         self.output_fbo = fb(color_attachments=[self.r.colour_tex, self.r.depth_tex])
         self.slice_fbo.clear(0.0, 0.0, 0.0, 0.0)  # then kept empty: each layer's prepare clears what it reads
+        columns, rows = -(-width // TILE), -(-height // TILE)
+        self._marks = TileMarks(self.ctx.buffer(data=np.zeros(columns * rows, np.uint32).tobytes()), TILE, columns)
+        self._tile_list = self.ctx.buffer(reserve=8 * columns * rows)  # slice_tiles.comp's tiles
+        self._tile_runs = self.ctx.buffer(reserve=16 * columns * rows)  # and runs of them
         self.sprite_fbo.clear(0.0, 0.0, 0.0, 0.0)  # likewise: each run's upsample clears what it read
         self._size, self._key = size, key
 
@@ -263,6 +285,7 @@ class SlicedDof:
             return 0
         w, h = self._size
         own = (5 * 16 + 16 + 4) * w * h + self._sprite_list.size + self._sprite_draw.size + self._again.size
+        own += self._marks.buffer.size + self._tile_list.size + self._tile_runs.size + self._tile_commands.size
         for level in self._levels.values():
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
@@ -325,7 +348,7 @@ class SlicedDof:
                 prepared = setup
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
-            r.splat_range(layer.first, layer.end, self.slice_fbo, box)
+            r.splat_range(layer.first, layer.end, self.slice_fbo, box, self._marks)
             reach = self._write_taps(cell, layer.radius / layer.scale)
             sprites = has_sprites(layer, rule, cap, sprite_frame)  # a reduced layer's highlights
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule, cap if sprites else 0)
@@ -414,24 +437,29 @@ class SlicedDof:
     def _prepare_layer(self, level: _Level, box: Box, layer: Layer, lens: Lens, rule: SliceRule,
                        sprites: int) -> Box:
         """The layer in the slice target, within ``box`` (GL pixels, whole blocks of the level),
-        made ready for its gather at ``level`` (slices.prepare): slice_visible.comp, then
-        slice_reduce.frag down to the level and slice_prepare.frag, after clearing what the last
-        layer prepared there wrote (the gather reads around its blocks, where the level must be
-        empty); the slice target is cleared in ``box`` once read. ``sprites``: the frame's cap of
-        sprites, for which the prepare also takes the layer's highlights out into the sprite list,
-        and their count into :attr:`_sprite_draw` (0: no highlights): all of them if they fit in
-        what is left of the cap, else none (sprite_accept.comp, then the prepare again without
-        highlights, drawn indirectly only then; slices.highlights).
+        made ready for its gather at ``level`` (slices.prepare): the tiles its blend marked listed
+        (slice_tiles.comp), slice_visible.comp over them, then slice_reduce.frag down to the level
+        and slice_prepare.frag, after clearing what the last layer prepared there wrote (the gather
+        reads around its blocks, where the level must be empty); the passes at full resolution
+        run in the listed tiles only, and the slice target is emptied there once read.
+        ``sprites``: the frame's cap of sprites, for which the prepare also takes the layer's
+        highlights out into the sprite list, and their count into :attr:`_sprite_draw` (0: no
+        highlights): all of them if they fit in what is left of the cap, else none
+        (sprite_accept.comp, then the prepare again without highlights, drawn indirectly only
+        then; slices.highlights).
         Returns the level's blocks."""
         s = layer.scale
+        self._list_tiles(box)
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
-        self._run(self._visible, box)
+        self._visible["u_box"].value = box
+        self._visible.run_indirect(self._tile_commands, offset=16)
+        self.ctx.memory_barrier()
         colour, depth, region = self._reduce_layer(box, s)
         self._clear(level.prepared, level.dirty)
         level.dirty = region
-        prog, vao = self._prepare
+        prog, vao = self._prepare_tiles if s == 1 else self._prepare  # at full resolution: its tiles
         uniforms = {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
@@ -443,7 +471,7 @@ class SlicedDof:
             self._sprite_draw.bind_to_storage_buffer(1)
             uniforms.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
                              "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim})
-        self._pass(prog, vao, level.prepared, uniforms, textures, region)
+        self._pass(prog, vao, level.prepared, uniforms, textures, region, tiles=int(s == 1))
         if sprites > 0:
             # drawn all or none (the GPU's order must not choose which): a layer whose highlights
             # do not fit in what is left of the cap is prepared again without them
@@ -454,26 +482,44 @@ class SlicedDof:
             self._accept.run(1)
             self.ctx.memory_barrier()
             self._pass(prog, vao, level.prepared, {**uniforms, "u_sprites": False}, textures, region, again=True)
-        # (cleared only now: the highlights are taken from the full-resolution layer)
-        self._clear(self.slice_fbo, box)
+        # (emptied only now: the highlights are taken from the full-resolution layer)
+        self._pass(*self._empty_tiles, self.slice_fbo, {}, [], box, tiles=1)
         return region
+
+    def _list_tiles(self, box: Box) -> None:
+        """List the tiles of ``box`` (GL pixels) that the layer's blend marked, clearing their marks
+        (slice_tiles.comp), with the indirect draw and dispatch over them in :attr:`_tile_commands`."""
+        self._tile_commands.write(_NO_TILES)
+        tiles = (box[0] // TILE, box[1] // TILE, -(-box[2] // TILE), -(-box[3] // TILE))
+        self._marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
+        self._tile_list.bind_to_storage_buffer(4)
+        self._tile_runs.bind_to_storage_buffer(5)
+        self._tile_commands.bind_to_storage_buffer(6)
+        self._list["u_tiles"].value = tiles
+        self._list["u_columns"].value = self._marks.columns
+        self._list.run(-(-(tiles[3] - tiles[1]) // 64))
+        self.ctx.memory_barrier()
 
     def _reduce_layer(self, box: Box, scale: int) -> tuple[moderngl.Texture, moderngl.Texture, Box]:
         """The slice target within ``box`` (GL pixels) averaged down to the level 1/``scale``
-        (slice_reduce.frag: 4 × 4 a pass while that does not pass the level, else 2 × 2); returns
-        the level's colour and depth sums (the slice target's at scale 1) and the blocks written."""
+        (slice_reduce.frag: 4 × 4 a pass while that does not pass the level, else 2 × 2), the
+        first pass in the listed tiles only (:meth:`_list_tiles`: elsewhere the level is cleared);
+        returns the level's colour and depth sums (the slice target's at scale 1) and the blocks
+        written."""
         colour, depth, region = self.slice_colour, self.slice_depth, box
-        prog, vao = self._reduce
         step = 1
         while step < scale:
             factor = 4 if 4 * step <= scale else 2
-            step *= factor
-            dest = self._level(step)
+            dest = self._level(step * factor)
             region = self._blocks(region, factor)
+            if step == 1:
+                self._clear(dest.reduced, region)
+            prog, vao = self._reduce_tiles if step == 1 else self._reduce
             self._linear.use(0)
             self._linear.use(1)
             self._pass(prog, vao, dest.reduced, {"u_colour": 0, "u_depth": 1, "u_factor": factor}, [colour, depth],
-                       region)
+                       region, tiles=factor if step == 1 else 0)
+            step *= factor
             self._linear.clear(0)
             self._linear.clear(1)
             colour, depth = dest.colour, dest.depth
@@ -504,14 +550,6 @@ class SlicedDof:
         vao.render_indirect(self._sprite_draw, moderngl.TRIANGLE_STRIP, count=1)
         ctx.disable(moderngl.BLEND)
         ctx.scissor = None
-
-    def _run(self, shader: moderngl.ComputeShader, box: Box) -> None:
-        """``shader`` over ``box`` (its u_box, 8 × 8 texels a workgroup), then a barrier."""
-        if box[2] <= box[0] or box[3] <= box[1]:
-            return
-        shader["u_box"].value = box
-        shader.run(-(-(box[2] - box[0]) // 8), -(-(box[3] - box[1]) // 8))
-        self.ctx.memory_barrier()
 
     def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int, edges: Edges) -> None:
         """slice_gather.frag over ``out`` (level pixels), blended behind what ``target`` holds,
@@ -557,13 +595,18 @@ class SlicedDof:
 
     def _pass(self, prog: moderngl.Program, vao: moderngl.VertexArray, fbo: moderngl.Framebuffer,
               uniforms: dict[str, object], textures: list[moderngl.Texture], box: Box, blend: bool = False,
-              again: bool = False) -> None:
+              again: bool = False, tiles: int = 0) -> None:
         """One full-screen pass of ``prog`` into ``fbo`` reading ``textures`` at units 0, 1, …,
         limited to ``box`` (target pixels, GL rows); ``blend``: front to back behind what ``fbo``
         holds (ONE_MINUS_DST_ALPHA, ONE); ``again``: drawn only if sprite_accept.comp refused the
-        layer's highlights (indirectly, from the count it wrote: no read-back)."""
+        layer's highlights (indirectly, from the count it wrote: no read-back); ``tiles``: only
+        in the listed tiles (:meth:`_list_tiles`; ``prog`` linked with slice_tiles.vert), ``fbo``
+        being at 1/``tiles`` of full resolution."""
         if box[2] <= box[0] or box[3] <= box[1]:
             return
+        if tiles:
+            uniforms = {**uniforms, "u_tile": TILE / tiles, "u_target": tuple(float(v) for v in fbo.size)}
+            self._tile_runs.bind_to_storage_buffer(5)
         for unit, tex in enumerate(textures):
             tex.use(unit)
         written = self._written.setdefault(prog.glo, {})
@@ -581,6 +624,8 @@ class SlicedDof:
             ctx.blend_equation = moderngl.FUNC_ADD
         if again:
             vao.render_indirect(self._again, moderngl.TRIANGLES, count=1)
+        elif tiles:
+            vao.render_indirect(self._tile_commands, moderngl.TRIANGLE_STRIP, count=1)
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
         if blend:
@@ -591,7 +636,8 @@ class SlicedDof:
         if self._size is not None:
             for obj in (self.slice_fbo, self.frame_fbo, self.acc_fbo, self.sprite_fbo, self.output_fbo,
                         self.slice_colour, self.slice_depth, self.over, self.visible, self.acc_depth,
-                        self.sprite_colour, self.sprite_visible):
+                        self.sprite_colour, self.sprite_visible, self._marks.buffer, self._tile_list,
+                        self._tile_runs):
                 obj.release()
         for level in self._levels.values():
             level.release()
@@ -601,13 +647,16 @@ class SlicedDof:
     def release(self) -> None:
         """Free the slice targets and programs."""
         self._release_targets()
-        for prog, vao in (self._reduce, self._prepare, self._gather, self._sprite, self._upsample, self._resolve):
+        for prog, vao in (self._reduce, self._reduce_tiles, self._prepare, self._prepare_tiles, self._empty_tiles,
+                          self._gather, self._sprite, self._upsample, self._resolve):
             vao.release()
             prog.release()
         self._sprite_list.release()
         self._sprite_draw.release()
         self._again.release()
         self._visible.release()
+        self._list.release()
+        self._tile_commands.release()
         self._occupancy.release()
         self._linear.release()
         self._norms.release()

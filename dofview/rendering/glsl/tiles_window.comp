@@ -17,6 +17,14 @@ uniform uvec4 u_tiles;  // (tx0, ty0, tx1, ty1), ends exclusive
 uniform uint u_tiles_x;
 uniform uvec2 u_window;
 
+// A listed tile marks the tiles of tile_marks.TileMarks (u_mark_size px) that share its pixels: the
+// range may write there.
+layout(std430, binding = MARKS_BINDING) buffer Marks { uint marks[]; };
+uniform bool u_mark;
+uniform uint u_mark_size;
+uniform uint u_mark_columns;
+uniform uvec4 u_mark_tiles;  // the box's tiles of the marks (tx0, ty0, tx1, ty1), ends exclusive
+
 const uint MAX_GROUPS = 65535u;
 
 // The first place in tile_vals[lo, hi) (ascending) holding a rank ≥ rank.
@@ -39,4 +47,10 @@ void main() {
     listed[at] = uvec4(tile, range);
     atomicMax(command.x, min(at + 1u, MAX_GROUPS));
     atomicMax(command.y, at / MAX_GROUPS + 1u);
+    if (u_mark) {
+        uvec2 first = max(tile * TILE / u_mark_size, u_mark_tiles.xy);
+        uvec2 end = min(((tile + 1u) * TILE + u_mark_size - 1u) / u_mark_size, u_mark_tiles.zw);
+        for (uint y = first.y; y < end.y; ++y)
+            for (uint x = first.x; x < end.x; ++x) marks[y * u_mark_columns + x] = 1u;
+    }
 }
