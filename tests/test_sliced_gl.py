@@ -119,7 +119,7 @@ def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):
         first = d._level(4 if scale >= 4 else 2)  # what an earlier layer left there
         first.reduced.clear(7.0, 7.0, 7.0, 7.0)
         d._marks.buffer.write(marks.tobytes())
-        d._list_tiles((0, 0, w, h))
+        d._list_tiles((0, 0, w, h), d._marks)
         got_c, got_d, region = d._reduce_layer((0, 0, w, h), scale)
         want_c, want_d = colour, depth
         for _ in range(int(math.log2(scale))):

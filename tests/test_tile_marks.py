@@ -107,7 +107,7 @@ def test_the_listing_gives_runs_and_tiles_of_the_marks_and_clears_them():
             marks = (rng.uniform(size=(rows, columns)) < share).astype(np.uint32)
             d._marks.buffer.write(marks.tobytes())
             box = (8, 20, 8 + 9 * SIZE + 5, 20 + 6 * SIZE)  # GL pixels: the tiles 0..9 × 1..7
-            d._list_tiles(box)
+            d._list_tiles(box, d._marks)
             tx0, ty0, tx1, ty1 = box[0] // SIZE, box[1] // SIZE, -(-box[2] // SIZE), -(-box[3] // SIZE)
             want_runs, want_tiles = set(), set()
             for y in range(ty0, ty1):
@@ -138,44 +138,90 @@ def test_the_listing_gives_runs_and_tiles_of_the_marks_and_clears_them():
         r.release()
 
 
-@pytest.mark.parametrize("backend", ["quad", "compute"])
-def test_passes_in_the_marked_tiles_change_no_bit(backend, monkeypatch):
-    """The sliced frame with its passes at full resolution in the tiles the layers marked is the
-    frame with every tile of each window marked, bit for bit (the disk and 6 blades, colour and
-    depth); and the marks did leave tiles out. Without highlights, whose additive blend follows
-    the GPU's order."""
-    from dataclasses import replace
-
-    from dofview.io import load_scene
+def _frames_marked_and_every_tile(monkeypatch, backend, scene, cam, lens, settings, rule=None):
+    """The sliced frames of ``settings`` (a list) drawn as they are and with every tile marked
+    wherever the mode lists tiles (a layer's blend's marks and a run's), and the share of each
+    listing's box that its marks held."""
     from dofview.rendering import sliced
-    from dofview.rendering.slices import SLICE_RULE
-    from test_sliced_gl import TWO_PLANES, _view
 
-    scene = load_scene(TWO_PLANES, progress=False)
-    cam, lens = _view(scene, 16.0)
-    shares = []
     original = sliced.SlicedDof._list_tiles
+    shares = []
 
-    def every_tile(self, box):
-        self._marks.buffer.write(np.ones(self._marks.buffer.size // 4, np.uint32).tobytes())
-        original(self, box)
+    def every_tile(self, box, marks):
+        self.ctx.memory_barrier()
+        marks.buffer.write(np.ones(marks.buffer.size // 4, np.uint32).tobytes())
+        original(self, box, marks)
 
-    def counted(self, box):
-        original(self, box)
+    def counted(self, box, marks):
+        original(self, box, marks)
         listed = int(np.frombuffer(self._tile_commands.read(), np.uint32)[7])
         tiles = (-(-box[2] // sliced.TILE) - box[0] // sliced.TILE) * (-(-box[3] // sliced.TILE) - box[1] // sliced.TILE)
-        shares.append(listed / tiles)
+        shares.append((marks is self._run_marks, listed / tiles))
 
     frames = {}
     for name, listing in (("marked", counted), ("every", every_tile)):
         monkeypatch.setattr(sliced.SlicedDof, "_list_tiles", listing)
         r = get_backend(backend, scene)
-        r.slice_rule = replace(SLICE_RULE, sprites=0.0)
+        r.slice_rule = rule
         try:
-            frames[name] = [r.render(cam, lens, RenderSettings(dof="sliced", blades=blades)) for blades in (0, 6)]
+            frames[name] = [r.render(cam, lens, each) for each in settings]
         finally:
             r.release()
-    for marked, every in zip(frames["marked"], frames["every"]):
-        np.testing.assert_array_equal(marked.rgba, every.rgba)
-        np.testing.assert_array_equal(marked.depth, every.depth)
-    assert len(shares) > 10 and min(shares) < 0.5 and max(shares) <= 1.0
+    return frames["marked"], frames["every"], shares
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_passes_in_the_marked_tiles_change_no_bit(backend, monkeypatch):
+    """The sliced frame with its passes at full resolution in the tiles the layers marked and its
+    runs upsampled in the tiles their gathers marked is the frame with every tile of each window
+    marked, bit for bit (the disk and 6 blades, colour and depth); and the marks did leave tiles
+    out. Without highlights, whose additive blend follows the GPU's order."""
+    from dataclasses import replace
+
+    from dofview.io import load_scene
+    from dofview.rendering.slices import SLICE_RULE
+    from test_sliced_gl import TWO_PLANES, _view
+
+    scene = load_scene(TWO_PLANES, progress=False)
+    cam, lens = _view(scene, 16.0)
+    settings = [RenderSettings(dof="sliced", blades=blades) for blades in (0, 6)]
+    marked, every, shares = _frames_marked_and_every_tile(monkeypatch, backend, scene, cam, lens, settings,
+                                                          replace(SLICE_RULE, sprites=0.0))
+    for a, b in zip(marked, every):
+        np.testing.assert_array_equal(a.rgba, b.rgba)
+        np.testing.assert_array_equal(a.depth, b.depth)
+    layers = [share for run, share in shares if not run]
+    runs = [share for run, share in shares if run]
+    assert len(layers) > 10 and min(layers) < 0.5 and max(layers) <= 1.0
+    assert len(runs) > 3 and max(runs) <= 1.0  # (these runs fill their boxes: the next test's do not)
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+@pytest.mark.parametrize("scene_name", ["lights", "corners"])
+def test_runs_with_sprites_are_upsampled_where_their_sprites_are(backend, scene_name, monkeypatch):
+    """Bright points drawn as full-resolution sprites (runs of one layer): before a wall, and two
+    alone near opposite corners of the frame, whose run's box is most of it and whose level keeps
+    none of their light (only the sprites mark where they are: slice_sprite.vert). The frame with
+    the runs upsampled in the tiles their gathers and sprites marked is the one with every tile
+    marked (to the sprites' additive blend, whose order is the GPU's); the corners' run marks under
+    four fifths of its box."""
+    from test_highlights import _lights_before_a_wall
+
+    cam = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 400, 296, 60.0)
+    if scene_name == "lights":
+        scene = _lights_before_a_wall("linear")
+    else:
+        # at the centres of 8 × 8 blocks (the layer's level is 1/8), each within its block: all of
+        # its light leaves for sprites and the level keeps none, so only the sprites mark their tiles
+        pixels = np.array([[84.0, 68.0], [316.0, 228.0]])
+        z = 3.0
+        means = np.column_stack([(pixels[:, 0] - cam.cx) / cam.fx * z, (pixels[:, 1] - cam.cy) / cam.fy * z, [z, z]])
+        scene = GaussianScene(means=means, quats=[[1, 0, 0, 0]] * 2, scales=[[0.002] * 3] * 2, opacities=[0.95] * 2,
+                              sh_dc=[(200.0, 150.0, 100.0)] * 2, colour_space="linear")
+    lens = Lens(1.2, 60.0)
+    marked, every, shares = _frames_marked_and_every_tile(monkeypatch, backend, scene, cam, lens,
+                                                          [RenderSettings()])
+    peak = every[0].rgba[..., :3].max()
+    assert peak > 0.0 and np.abs(marked[0].rgba - every[0].rgba).max() <= 1e-6 * peak
+    runs = [share for run, share in shares if run]
+    assert runs and (scene_name == "lights" or min(runs) < 0.8)

@@ -24,7 +24,7 @@ three quarters of its window's tiles in the shared scenes), then
    aperture, or a lens cell of progressive refinement), blended front to back into the frame's
    accumulators ("over" colour, summed visible coverage), or for a reduced layer into its run's
    (the consecutive layers of one level), which slice_upsample.frag composites into the frame's
-   once the run ends;
+   once the run ends, in the tiles the run's gathers (slice_occupancy.comp) and sprites marked;
 4. a reduced layer's highlights (slices.highlights): slice_prepare.frag appends each pixel of the
    layer's blocks whose brightness stands out of its neighbourhood to a sprite list (at most
    SliceRule.sprites of the frame's pixels, a layer's highlights all or none, so that no order of
@@ -193,24 +193,24 @@ class SlicedDof:
         self._list = compute_shader(ctx, "slice_tiles.comp", tile)
         self._visible = compute_shader(ctx, "slice_visible.comp", tile)
         self._accept = compute_shader(ctx, "sprite_accept.comp")
-        self._occupancy = compute_shader(ctx, "slice_occupancy.comp")
+        self._occupancy = compute_shader(ctx, "slice_occupancy.comp", tile)
         self._reduce = program("slice_reduce.frag")
         # the passes at full resolution, drawn over the tiles a layer's blend marked
         self._reduce_tiles = program("slice_reduce.frag", "slice_tiles.vert")
         self._prepare_tiles = program("slice_prepare.frag", "slice_tiles.vert")
         self._empty_tiles = program("slice_empty.frag", "slice_tiles.vert")
+        self._upsample_tiles = program("slice_upsample.frag", "slice_tiles.vert")
         self._tile_commands = ctx.buffer(reserve=32)  # slice_tiles.comp's indirect draw and dispatch
         self._linear = ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
         self._prepare = program("slice_prepare.frag")
         self._gather = program("slice_gather.frag")
-        defines = {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES}
+        defines = {"MAX_TAPS": MAX_TAPS, "MAX_PLANES": MAX_PLANES, **tile}
         sprite = ctx.program(vertex_shader=load_shader("slice_sprite.vert", defines),
                              fragment_shader=load_shader("slice_sprite.frag", defines))
         self._sprite = sprite, ctx.vertex_array(sprite, [])
         self._sprite_list = ctx.buffer(reserve=SPRITE_HEADER)  # slice_prepare.frag's Sprites: sized per frame
         self._sprite_draw = ctx.buffer(reserve=16)  # a layer's indirect draw of its sprites
         self._again = ctx.buffer(reserve=16)  # the indirect draw of a refused layer's prepare without highlights
-        self._upsample = program("slice_upsample.frag")
         self._resolve = program("slice_resolve.frag")
         self._size: tuple[int, int] | None = None
         self.guard = 0
@@ -258,6 +258,8 @@ class SlicedDof:
         self._marks = TileMarks(self.ctx.buffer(data=np.zeros(columns * rows, np.uint32).tobytes()), TILE, columns)
         self._tile_list = self.ctx.buffer(reserve=8 * columns * rows)  # slice_tiles.comp's tiles
         self._tile_runs = self.ctx.buffer(reserve=16 * columns * rows)  # and runs of them
+        # where a run of reduced layers holds light (slice_occupancy.comp) or sprites (slice_sprite.vert)
+        self._run_marks = TileMarks(self.ctx.buffer(data=np.zeros(columns * rows, np.uint32).tobytes()), TILE, columns)
         self.sprite_fbo.clear(0.0, 0.0, 0.0, 0.0)  # likewise: each run's upsample clears what it read
         self._size, self._key = size, key
 
@@ -285,7 +287,8 @@ class SlicedDof:
             return 0
         w, h = self._size
         own = (5 * 16 + 16 + 4) * w * h + self._sprite_list.size + self._sprite_draw.size + self._again.size
-        own += self._marks.buffer.size + self._tile_list.size + self._tile_runs.size + self._tile_commands.size
+        own += (2 * self._marks.buffer.size + self._tile_list.size + self._tile_runs.size
+                + self._tile_commands.size)
         for level in self._levels.values():
             own += sum(t.width * t.height * t.components * 4 for t in level.textures())
         return own
@@ -354,7 +357,7 @@ class SlicedDof:
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule, cap if sprites else 0)
             out = _intersect(self._grow(blocks, reach, level), self._grow(self._blocks(frame, s), 1, level))
             if level.run is None:
-                self._gather_layer(level, self.frame_fbo, out, reach, sides)
+                self._gather_layer(level, self.frame_fbo, out, reach, sides, frame)
             else:
                 fresh = not run
                 if fresh:
@@ -367,7 +370,7 @@ class SlicedDof:
                     if lit[2] > lit[0] and lit[3] > lit[1]:
                         self._draw_sprites(lit)
                         run[1] = _union(run[1], lit)
-                self._gather_layer(level, level.run, out, reach, sides)
+                self._gather_layer(level, level.run, out, reach, sides, frame)
                 # the run's reach at full resolution, a block more for the bilinear upsampling
                 run[1] = _union(run[1], _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s,
                                                      (out[3] + 1) * s), frame))
@@ -449,7 +452,7 @@ class SlicedDof:
         then; slices.highlights).
         Returns the level's blocks."""
         s = layer.scale
-        self._list_tiles(box)
+        self._list_tiles(box, self._marks)
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
@@ -486,17 +489,19 @@ class SlicedDof:
         self._pass(*self._empty_tiles, self.slice_fbo, {}, [], box, tiles=1)
         return region
 
-    def _list_tiles(self, box: Box) -> None:
-        """List the tiles of ``box`` (GL pixels) that the layer's blend marked, clearing their marks
-        (slice_tiles.comp), with the indirect draw and dispatch over them in :attr:`_tile_commands`."""
+    def _list_tiles(self, box: Box, marks: TileMarks) -> None:
+        """List the tiles of ``box`` (GL pixels) that ``marks`` holds (a layer's blend's, or a
+        run's), clearing their marks (slice_tiles.comp), with the indirect draw and dispatch over
+        them in :attr:`_tile_commands`."""
+        self.ctx.memory_barrier()  # the marks the blend, the gathers or the sprites stored
         self._tile_commands.write(_NO_TILES)
         tiles = (box[0] // TILE, box[1] // TILE, -(-box[2] // TILE), -(-box[3] // TILE))
-        self._marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
+        marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
         self._tile_list.bind_to_storage_buffer(4)
         self._tile_runs.bind_to_storage_buffer(5)
         self._tile_commands.bind_to_storage_buffer(6)
         self._list["u_tiles"].value = tiles
-        self._list["u_columns"].value = self._marks.columns
+        self._list["u_columns"].value = marks.columns
         self._list.run(-(-(tiles[3] - tiles[1]) // 64))
         self.ctx.memory_barrier()
 
@@ -535,11 +540,14 @@ class SlicedDof:
     def _draw_sprites(self, box: Box) -> None:
         """The sprites the layer's prepare listed (slice_sprite.vert/.frag), drawn indirectly with
         the count it wrote, within ``box`` (full-resolution GL pixels: their reach in the frame),
-        added into the sprite targets."""
+        added into the sprite targets, marking their tiles in :attr:`_run_marks`."""
         self.ctx.memory_barrier()  # the prepare's list and count, for the vertex stage and the draw
         prog, vao = self._sprite
         self._sprite_list.bind_to_storage_buffer(0)
         prog["u_size"].value = tuple(float(v) for v in self._size)
+        prog["u_columns"].value = self._run_marks.columns
+        prog["u_box"].value = box
+        self._run_marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
         ctx = self.ctx
         self.sprite_fbo.use()
         ctx.viewport = (0, 0, *self._size)
@@ -551,14 +559,25 @@ class SlicedDof:
         ctx.disable(moderngl.BLEND)
         ctx.scissor = None
 
-    def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int, edges: Edges) -> None:
+    def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int, edges: Edges,
+                      frame: Box) -> None:
         """slice_gather.frag over ``out`` (level pixels), blended behind what ``target`` holds,
         repeating the level's edge beyond the sides ``edges`` names, after slice_occupancy.comp has
         found for each of its tiles the largest |ρ| of the light within ``reach`` texels (none: the
-        tile is left at once; else only the taps such light can reach are visited)."""
+        tile is left at once; else only the taps such light can reach are visited); into a run's
+        accumulators, it marks where the run's upsampling will read that light (full-resolution
+        tiles within ``frame``, GL pixels, and ``out`` a texel wider: :attr:`_run_marks`)."""
         if out[2] <= out[0] or out[3] <= out[1]:
             return
         occ = self._occupancy
+        s = level.scale
+        occ["u_mark"].value = target is level.run
+        if target is level.run:
+            occ["u_scale"].value = s
+            occ["u_columns"].value = self._run_marks.columns
+            occ["u_frame"].value = _intersect(((out[0] - 1) * s, (out[1] - 1) * s, (out[2] + 1) * s, (out[3] + 1) * s),
+                                              frame)
+            self._run_marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
         tiles = (out[0] // 8, out[1] // 8, -(-out[2] // 8), -(-out[3] // 8))
         level.occupied.bind_to_image(0, read=False, write=True)
         level.a.use(0)
@@ -575,18 +594,22 @@ class SlicedDof:
                    blend=True)
 
     def _end_run(self, run: list) -> None:
-        """Upsample the run's accumulators into the frame's, behind what they hold."""
+        """Upsample the run's accumulators into the frame's, behind what they hold, in the tiles
+        its gathers and sprites marked (elsewhere it holds nothing), and empty the sprite targets
+        there."""
         level, box = run
         if box is not None:
-            prog, vao = self._upsample
+            self._list_tiles(box, self._run_marks)
+            prog, vao = self._upsample_tiles
             self._linear.use(0)  # the run's accumulators, filtered bilinearly
             self._linear.use(1)
             self._pass(prog, vao, self.frame_fbo,
                        {"u_over": 0, "u_visible": 1, "u_sprites": 2, "u_sprite_visible": 3, "u_scale": level.scale},
-                       [*level.run.color_attachments, self.sprite_colour, self.sprite_visible], box, blend=True)
+                       [*level.run.color_attachments, self.sprite_colour, self.sprite_visible], box, blend=True,
+                       tiles=1)
             self._linear.clear(0)
             self._linear.clear(1)
-            self._clear(self.sprite_fbo, box)
+            self._pass(*self._empty_tiles, self.sprite_fbo, {}, [], box, tiles=1)
         run.clear()
 
     def _clear(self, fbo: moderngl.Framebuffer, box: Box | None) -> None:
@@ -637,7 +660,7 @@ class SlicedDof:
             for obj in (self.slice_fbo, self.frame_fbo, self.acc_fbo, self.sprite_fbo, self.output_fbo,
                         self.slice_colour, self.slice_depth, self.over, self.visible, self.acc_depth,
                         self.sprite_colour, self.sprite_visible, self._marks.buffer, self._tile_list,
-                        self._tile_runs):
+                        self._tile_runs, self._run_marks.buffer):
                 obj.release()
         for level in self._levels.values():
             level.release()
@@ -648,7 +671,7 @@ class SlicedDof:
         """Free the slice targets and programs."""
         self._release_targets()
         for prog, vao in (self._reduce, self._reduce_tiles, self._prepare, self._prepare_tiles, self._empty_tiles,
-                          self._gather, self._sprite, self._upsample, self._resolve):
+                          self._gather, self._sprite, self._upsample_tiles, self._resolve):
             vao.release()
             prog.release()
         self._sprite_list.release()

@@ -5,8 +5,16 @@
 // that slice_gather.frag leaves such tiles at once and stops the others' taps where their sources'
 // kernels end. Exact: a texel without coverage carries no colour (premultiplied) and no visible
 // part. A layer is a thin depth range of the scene: most of its box is empty, and within it the
-// blur changes little from one tile to the next.
+// blur changes little from one tile to the next. With u_mark (a reduced layer gathered into its
+// run's accumulators), a tile with light marks the full-resolution tiles (tile_marks.TileMarks)
+// that the run's upsampling reads it in: its block a texel wider on every side (bilinear).
 layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(std430, binding = MARKS_BINDING) buffer Marks { uint marks[]; };
+uniform bool u_mark;
+uniform int u_scale;       // the level's
+uniform int u_columns;     // the marks' tiles a row
+uniform ivec4 u_frame;     // full-resolution pixels marked within (x0, y0, x1, y1), GL rows
 
 layout(r32f, binding = 0) uniform writeonly image2D u_occupied;
 uniform sampler2D u_a;   // the prepared layer: colour / N(ρ)
@@ -27,4 +35,10 @@ void main() {
         }
     }
     imageStore(u_occupied, t, vec4(widest));
+    if (u_mark && widest >= 0.0) {
+        ivec2 first = max((t * 8 - 1) * u_scale, u_frame.xy) / TILE;
+        ivec2 end = (min((t * 8 + 9) * u_scale, u_frame.zw) + TILE - 1) / TILE;
+        for (int y = first.y; y < end.y; ++y)
+            for (int x = first.x; x < end.x; ++x) marks[y * u_columns + x] = 1u;
+    }
 }

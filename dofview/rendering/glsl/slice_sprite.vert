@@ -14,6 +14,12 @@ layout(std430, binding = 0) readonly buffer Sprites {
 
 uniform vec2 u_size;  // the target's pixels
 
+// The tiles each quad covers are marked (tile_marks.TileMarks), within the draw's box: the run's
+// upsampling reads the sprites there.
+layout(std430, binding = MARKS_BINDING) buffer Marks { uint marks[]; };
+uniform int u_columns;  // the marks' tiles a row
+uniform ivec4 u_box;    // the draw's scissor (x0, y0, x1, y1), pixels, GL rows
+
 flat out vec4 v_colour;  // colour / N(ρ)
 flat out vec4 v_place;   // (x, y, ρ, visible / N(ρ))
 
@@ -24,6 +30,13 @@ void main() {
     v_colour = colour / norm;
     v_place = vec4(place.xyz, place.w / norm);
     vec2 corner = vec2(gl_VertexID & 1, gl_VertexID >> 1) * 2.0 - 1.0;  // a triangle strip
-    vec2 at = place.xy + 0.5 + corner * (abs(place.z) * u_reach + 1.5);
+    float half_size = abs(place.z) * u_reach + 1.5;
+    vec2 at = place.xy + 0.5 + corner * half_size;
     gl_Position = vec4(at / u_size * 2.0 - 1.0, 0.0, 1.0);
+    if (gl_VertexID == 0) {  // a pixel wider: every pixel centre the quad covers is in a marked tile
+        ivec2 first = ivec2(max(floor(place.xy + 0.5 - half_size - 1.0), vec2(u_box.xy))) / TILE;
+        ivec2 end = (ivec2(min(ceil(place.xy + 0.5 + half_size + 1.0), vec2(u_box.zw))) + TILE - 1) / TILE;
+        for (int y = first.y; y < end.y; ++y)
+            for (int x = first.x; x < end.x; ++x) marks[y * u_columns + x] = 1u;
+    }
 }
