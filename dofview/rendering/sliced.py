@@ -48,7 +48,7 @@ resolution the slice colour and depth sums, the two accumulators, the depth accu
 sprite targets and the prepared layer (RGBA32F ×7, R32F and RG32F: 124 B), and per reduced level s
 the layer averaged down, prepared, and a run's accumulators (88/s² B): ≤ 154 B in all besides the
 renderer's own targets, the sprite list (32 B a sprite: 0.64 B per pixel of frame) and the tiles'
-marks and lists (28 B a tile: 0.11 B per pixel) (≈ 155 MB
+marks and lists (32 B a tile: 0.125 B per pixel) (≈ 155 MB
 per megapixel of frame without a band; the widest band, an eighth of the frame's larger side on
 every side rounded up to 32 px, makes the image about 2× the frame's pixels: 266 MB per megapixel
 of frame measured at 640×360 before the sprite targets, which add 20 B per pixel of that image).
