@@ -90,9 +90,6 @@ class Renderer(ABC):
     """
 
     name = "base"
-    #: whether each :meth:`splat_range` counts the Gaussians it draws (True), or
-    #: :meth:`prepare_splats` counts every Gaussian of the scene it projects (False)
-    counts_per_range = True
 
     def __init__(self, scene: GaussianScene, ctx: moderngl.Context | None = None, packed: bool = True) -> None:
         self.ctx = ctx or headless_context()
@@ -275,10 +272,14 @@ class Renderer(ABC):
         self.splat_range(0, self.scene.count, self.fbo)
 
     @abstractmethod
-    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False,
+                       span: tuple[int, int] | None = None) -> None:
         """Set up splatting with ``camera`` (whose size is the targets' that follow), ``lens`` and
-        ``settings`` for the :meth:`splat_range` calls that follow (``count``: they add the
-        Gaussians drawn to the draw counter, see :meth:`splat_scene`)."""
+        ``settings`` for the :meth:`splat_range` calls that follow (``count``: the Gaussians of
+        ``span`` that the projection keeps, or of each range as it is drawn, are added to the draw
+        counter, see :meth:`splat_scene`). ``span``: (first, end) of the front-to-back order, the
+        only Gaussians those calls draw (a backend may project only them; a range beyond it is a
+        ValueError); None: the whole order."""
 
     @abstractmethod
     def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,

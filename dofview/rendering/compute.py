@@ -70,7 +70,6 @@ class ComputeBackend(Renderer):
     """
 
     name = "compute"
-    counts_per_range = False
 
     @classmethod
     def require(cls, ctx: moderngl.Context, count: int = 0) -> None:
@@ -127,6 +126,7 @@ class ComputeBackend(Renderer):
         self._image = (0, 0)  # its size (a guarded image's in the sliced mode)
         self._tau = 0.0
         self._binned = False  # the pairs of the last prepare_splats are made and sorted (one buffer holds them)
+        self._span = (0, 0)  # the ranks the last prepare_splats projected
         self._vals: moderngl.Buffer | None = None  # the sorted pairs' ranks
         self._passes: tuple[int, int] | None = None  # (splats a blend pass takes, the longest tile) where loops are limited
         self._deep_prog: moderngl.ComputeShader | None = None  # the deep walk, compiled by the first deep image
@@ -210,17 +210,26 @@ class ComputeBackend(Renderer):
         return self._pairs
 
     # ---- drawing -------------------------------------------------------------------------------
-    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
-        """Preprocess and scan the tile counts of all Gaussians (no read-back but the pair totals);
-        the pairs are made and sorted by the first :meth:`splat_range` that follows."""
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False,
+                       span: tuple[int, int] | None = None) -> None:
+        """Preprocess and scan the tile counts of the Gaussians of ``span`` (the whole order when
+        None; no read-back but the pair totals); the pairs are made and sorted by the first
+        :meth:`splat_range` that follows. A span matters in the sliced mode: its huge-CoC layers
+        are drawn blurred by the lens, and binning every Gaussian of the scene so blurred, to draw
+        those few, cost more than the rest of its blending (docs/BENCHMARKS.md, "Cost in rooms")."""
+        n = self.scene.count
+        first, end = span or (0, n)
+        if not 0 <= first <= end <= n:
+            raise ValueError(f"span {span} is not within the order's {n} Gaussians")
+        self._span = first, end
         self._tiles = (-(-camera.width // self.tile), -(-camera.height // self.tile))
         self._image = (camera.width, camera.height)
         self._tau = settings.tau
         self.pairs = 0
         self._binned = False
-        if self.scene.count:
+        if end > first:
             self._preprocess(camera, lens, settings, count, self._tiles)
-            self.pairs = self._scan_counts(self.scene.count)
+            self.pairs = self._scan_counts(n)
         self._ranges_for(self._tiles)
 
     def splat_range(self, first: int, end: int, target: moderngl.Framebuffer,
@@ -230,6 +239,8 @@ class ComputeBackend(Renderer):
         When all pairs fit one buffer they are made and sorted once per :meth:`prepare_splats` and
         every range blends its part of each tile's list; otherwise the range is drawn in depth
         slices, each binned on its own (its pair offsets come back: 8 bytes)."""
+        if not self._span[0] <= first <= end <= self._span[1] and end > first:
+            raise ValueError(f"range [{first}, {end}) is outside the prepared span {self._span}")
         width, height = self._image
         x0, y0, x1, y1 = box or (0, 0, width, height)
         pixels = (x0, height - y1, x1, height - y0)  # GL rows
@@ -243,7 +254,7 @@ class ComputeBackend(Renderer):
                                        -(-pixels[2] // marks.size), -(-pixels[3] // marks.size))
         if self.pairs <= self.max_pairs:
             if not self._binned:
-                self._bin(0, self.scene.count, 0, self.pairs)
+                self._bin(*self._span, 0, self.pairs)
                 self._binned = True
             self.slices = 1
             self._blend_window(first, end, target, tiles, pixels, marks, resume=False)
@@ -270,15 +281,20 @@ class ComputeBackend(Renderer):
     def _preprocess(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool,
                     tiles: tuple[int, int]) -> None:
         p = self._pre
+        first, end = self._span
         set_projection_uniforms(p, camera, lens, settings)
-        p["u_n"].value = self.scene.count
+        # a part of the order: its Gaussians, found through it (the whole scene: in storage order)
+        p["u_ranked"].value = end - first < self.scene.count
+        p["u_first"].value = first
+        p["u_n"].value = end - first
         p["u_count"].value = count
         p["u_tiles"].value = tiles
         self.bind_scene()
         self._splats.bind_to_storage_buffer(3)
         self._rects.bind_to_storage_buffer(4)
         self._counter.bind_to_storage_buffer(5)
-        p.run(*groups(-(-self.scene.count // 256)))
+        self._order.bind_to_storage_buffer(6)
+        p.run(*groups(-(-(end - first) // 256)))
         self.ctx.memory_barrier()
 
     def _scan_counts(self, n: int) -> int:
@@ -288,6 +304,7 @@ class ComputeBackend(Renderer):
         for binding, buf in enumerate((self._order, self._rects, self._offsets, self._group_totals, self._splats)):
             buf.bind_to_storage_buffer(binding)
         self._count["u_n"].value = n
+        self._count["u_span"].value = self._span
         self._count.run(*groups(-(-(n + 1) // 256)))
         self.ctx.memory_barrier()
         total = int(np.frombuffer(self._group_totals.read(), np.uint32).sum(dtype=np.int64))

@@ -137,7 +137,10 @@ class QuadBackend(Renderer):
             self._requested = self._order_key
 
     # ---- drawing -------------------------------------------------------------------------------
-    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False) -> None:
+    def prepare_splats(self, camera: Camera, lens: Lens, settings: RenderSettings, count: bool = False,
+                       span: tuple[int, int] | None = None) -> None:
+        """Uniforms only: each quad is projected as it is drawn (and counted then), so ``span``
+        changes nothing here."""
         p = self.program
         set_projection_uniforms(p, camera, lens, settings)
         p["u_count"].value = count

@@ -138,6 +138,22 @@ def _tap_uniform(cell: LensCell, radius: float) -> tuple[bytes, bytes, int, int]
     return data.tobytes(), prefix.tobytes(), len(taps), int(np.abs(taps).max())
 
 
+def _setup_spans(layers: list[Layer]) -> list[tuple[int, int]]:
+    """Per layer, (first, end) of the front-to-back order of the run of consecutive layers drawn
+    with its lens (the pinhole, or the lens for the huge-CoC layers): what one prepare_splats
+    serves."""
+    spans: list[tuple[int, int]] = []
+    for index, layer in enumerate(layers):
+        if index and layers[index - 1].lensed == layer.lensed:
+            spans.append(spans[-1])
+            continue
+        end = index
+        while end + 1 < len(layers) and layers[end + 1].lensed == layer.lensed:
+            end += 1
+        spans.append((layer.first, layers[end].end))
+    return spans
+
+
 def _intersect(a: Box, b: Box) -> Box:
     return max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
 
@@ -333,10 +349,8 @@ class SlicedDof:
         self._sprites_for(cap)
         pinhole = (Lens(lens.focus, 0.0), replace(settings, dof="splat"), count)
         # the huge-CoC front and back layers, drawn blurred, see the lens cell's share of the aperture
-        # (counted as they are drawn where the backend counts per range; the pinhole setup's
-        # prepare counts the whole scene where it does not)
-        lensed = (Lens(lens.focus, lens.aperture * math.sqrt(cell.share)), replace(settings, dof="splat"),
-                  count and r.counts_per_range)
+        lensed = (Lens(lens.focus, lens.aperture * math.sqrt(cell.share)), replace(settings, dof="splat"), count)
+        spans = _setup_spans(plan.layers)
         prepared = None
         run: list = []  # [level, box (full-resolution pixels)] of the run being composited
         for index, (layer, box, sides) in enumerate(zip(plan.layers, plan.windows, plan.edges)):
@@ -347,7 +361,7 @@ class SlicedDof:
                 continue  # nothing of it within its reach of the frame: it adds nothing (but ends a run)
             setup = lensed if layer.lensed else pinhole
             if setup is not prepared:
-                r.prepare_splats(camera, *setup)
+                r.prepare_splats(camera, *setup, span=spans[index])
                 prepared = setup
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))

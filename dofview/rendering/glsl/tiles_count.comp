@@ -15,6 +15,7 @@ layout(std430, binding = 2) writeonly buffer Counts { uint counts[]; };
 layout(std430, binding = 3) buffer GroupTotals { uint group_totals[]; };
 layout(std430, binding = 4) readonly buffer Splats { Splat splats[]; };
 uniform uint u_n;
+uniform uvec2 u_span;  // the ranks tiles_preprocess.comp projected: the others count none
 
 #include "dispatch.glsl"
 
@@ -22,7 +23,7 @@ void main() {
     uint group = group_index();
     uint i = group * 256u + gl_LocalInvocationID.x;
     if (i > u_n) return;
-    if (i == u_n) { counts[i] = 0u; return; }
+    if (i == u_n || i < u_span.x || i >= u_span.y) { counts[i] = 0u; return; }
     uvec2 r = rects[order[i]];
     uint count = ((r.y & 0xffffu) - (r.x & 0xffffu)) * ((r.y >> 16) - (r.x >> 16));
     if (count > 1u && count <= TEST_MAX) {  // the tiles the ellipse reaches (as tiles_duplicate.comp)

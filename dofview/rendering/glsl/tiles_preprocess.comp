@@ -1,5 +1,6 @@
 #version 430
-// Compute rasteriser, step 1, one thread per Gaussian: project it (project.glsl, the same math as
+// Compute rasteriser, step 1, one thread per Gaussian (of the scene, or of a span of the depth
+// order: the sliced mode's layers drawn with one lens): project it (project.glsl, the same math as
 // quads.vert), store the splat record and the rectangle of tiles its support box touches
 // (x0 | y0 << 16, x1 | y1 << 16, ends exclusive; empty when culled). TILE (pixels) is #defined.
 layout(local_size_x = 256) in;
@@ -14,13 +15,17 @@ layout(local_size_x = 256) in;
 layout(std430, binding = 3) writeonly buffer Splats { Splat splats[]; };
 layout(std430, binding = 4) writeonly buffer Rects { uvec2 rects[]; };
 layout(std430, binding = 5) buffer Counter { uint drawn; };
+layout(std430, binding = 6) readonly buffer Order { uint order[]; };  // front to back
+uniform bool u_ranked;  // the Gaussians of ranks [u_first, u_first + u_n) of the order, else [0, u_n)
+uniform uint u_first;
 uniform uint u_n;
 uniform bool u_count;
 uniform ivec2 u_tiles;  // tiles per row, rows
 
 void main() {
-    uint g = group_index() * 256u + gl_LocalInvocationID.x;
-    if (g >= u_n) return;
+    uint i = group_index() * 256u + gl_LocalInvocationID.x;
+    if (i >= u_n) return;
+    uint g = u_ranked ? order[u_first + i] : i;
     Footprint f;
     if (!project_gaussian(g, f)) {
         rects[g] = uvec2(0u);
