@@ -53,6 +53,40 @@ def _view(scene, blur: float, width: int = 160, height: int = 120):
     return cam, Lens(focus, aperture_for_blur(blur, focus, float(np.percentile(z, 5)), float(np.percentile(z, 95))))
 
 
+@pytest.mark.parametrize("blades", [0, 6])
+def test_the_gathers_interior_loop_changes_no_bit(blades, monkeypatch):
+    """slice_gather.frag leaves out the edge tests for pixels whose every tap lies inside the level
+    (u_tap_reach from its edges): the frame is the one with every pixel gathered through the edge
+    tests (u_tap_reach beyond the level), bit for bit, on two planes that fill the frame, whose
+    layers reach the level's edges and repeat them there (no guard band: those edges are the
+    frame's). With the interior loop everywhere (u_tap_reach below 0) the frame differs: its edges
+    need the tests."""
+    from dofview.rendering import sliced
+
+    scene = load_scene(TWO_PLANES, progress=False)
+    cam, lens = _view(scene, 16.0)
+    original = sliced.SlicedDof._write_taps
+    frames = {}
+    for name, reach in (("default", None), ("edge tests", 1 << 20), ("interior", -(1 << 20))):
+        def write_taps(self, cell, radius, reach=reach):
+            out = original(self, cell, radius)
+            if reach is not None:
+                self._gather[0]["u_tap_reach"].value = reach
+            return out
+
+        monkeypatch.setattr(sliced.SlicedDof, "_write_taps", write_taps)
+        r = get_backend("quad", scene)
+        # no guard band: the levels' edges are the frame's (the sprites' additive blend follows the GPU's order)
+        r.slice_rule = replace(SLICE_RULE, sprites=0.0, guard=0.0)
+        try:
+            frames[name] = r.render(cam, lens, RenderSettings(blades=blades))
+        finally:
+            r.release()
+    np.testing.assert_array_equal(frames["default"].rgba, frames["edge tests"].rgba)
+    np.testing.assert_array_equal(frames["default"].depth, frames["edge tests"].depth)
+    assert np.abs(frames["interior"].rgba - frames["default"].rgba).max() > 0.01
+
+
 @pytest.mark.parametrize("backend", ["quad", "compute"])
 @pytest.mark.parametrize("path", [CARDS, TWO_PLANES], ids=["cards", "two_planes"])
 def test_sliced_matches_the_cpu_reference(backend, path):

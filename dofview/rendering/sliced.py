@@ -427,6 +427,7 @@ class SlicedDof:
             prog["u_tap"].write(data)
             prog["u_prefix"].write(prefix)
             prog["u_taps"].value = count
+            prog["u_tap_reach"].value = reach
             self._taps_set = data
         return reach
 

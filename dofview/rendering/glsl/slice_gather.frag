@@ -12,6 +12,7 @@ uniform sampler2D u_a;  // colour / N(ρ)
 uniform sampler2D u_b;  // (ρ, visible coverage / N(ρ))
 uniform bvec4 u_edge;   // repeat the edge beyond (left, bottom, right, top)
 uniform sampler2D u_occupied;  // per 8 × 8 tile: the largest |ρ| within reach, −1: no light (slice_occupancy.comp)
+uniform int u_tap_reach;  // the taps' largest offset along an axis, texels
 uniform int u_prefix[MAX_PREFIX];  // taps needed where every |ρ| < (k + 1)/PREFIX_STEPS (sliced._tap_uniform)
 
 layout(location = 0) out vec4 out_colour;
@@ -26,17 +27,31 @@ void main() {
     ivec2 last = textureSize(u_a, 0) - 1;
     vec4 sum = vec4(0.0);
     float visible = 0.0;
-    for (int i = 0; i < taps; ++i) {
-        vec2 d = tap(i);
-        ivec2 q = p - ivec2(d);
-        bvec4 beyond = bvec4(q.x < 0, q.y < 0, q.x > last.x, q.y > last.y);
-        if (any(bvec4(ivec4(beyond) * ivec4(not(u_edge))))) continue;
-        q = clamp(q, ivec2(0), last);
-        vec2 b = texelFetch(u_b, q, 0).rg;
-        float w = kernel_weight(d, b.x);
-        if (w > 0.0) {
-            sum += w * texelFetch(u_a, q, 0);
-            visible += w * b.y;
+    if (all(greaterThanEqual(p, ivec2(u_tap_reach))) && all(lessThanEqual(p, last - u_tap_reach))) {
+        // every tap's source lies inside the level (most pixels): no edge to repeat or leave
+        for (int i = 0; i < taps; ++i) {
+            vec2 d = tap(i);
+            ivec2 q = p - ivec2(d);
+            vec2 b = texelFetch(u_b, q, 0).rg;
+            float w = kernel_weight(d, b.x);
+            if (w > 0.0) {
+                sum += w * texelFetch(u_a, q, 0);
+                visible += w * b.y;
+            }
+        }
+    } else {
+        for (int i = 0; i < taps; ++i) {
+            vec2 d = tap(i);
+            ivec2 q = p - ivec2(d);
+            bvec4 beyond = bvec4(q.x < 0, q.y < 0, q.x > last.x, q.y > last.y);
+            if (any(bvec4(ivec4(beyond) * ivec4(not(u_edge))))) continue;
+            q = clamp(q, ivec2(0), last);
+            vec2 b = texelFetch(u_b, q, 0).rg;
+            float w = kernel_weight(d, b.x);
+            if (w > 0.0) {
+                sum += w * texelFetch(u_a, q, 0);
+                visible += w * b.y;
+            }
         }
     }
     out_colour = sum;
