@@ -478,16 +478,20 @@ class SlicedDof:
         self._clear(level.prepared, level.dirty)
         level.dirty = region
         prog, vao = self._prepare_tiles if s == 1 else self._prepare  # at full resolution: its tiles
-        uniforms = {"u_colour": 0, "u_depth": 1, "u_norm": 2, "u_norm_range": self._norms_for[1], "u_scale": s,
+        uniforms = {"u_norm": 0, "u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
                     "u_rmax": layer.radius / s, "u_sprites": sprites > 0, "u_cap": max(sprites, 0)}
-        textures = [colour, depth, self._norms, self.slice_colour, self.slice_depth]
+        colour.bind_to_image(3, read=True, write=False)
+        depth.bind_to_image(4, read=True, write=False)
+        textures = [self._norms]
         if sprites > 0:  # the highlights' uniforms, and this layer's draw of none so far
             self._sprite_draw.write(_NO_SPRITES)
             self._sprite_list.bind_to_storage_buffer(0)
             self._sprite_draw.bind_to_storage_buffer(1)
-            uniforms.update({"u_full_colour": 3, "u_full_depth": 4, "u_region": region,
+            self.slice_colour.bind_to_image(5, read=True, write=False)
+            self.slice_depth.bind_to_image(6, read=True, write=False)
+            uniforms.update({"u_region": region,
                              "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim})
         self._pass(prog, vao, level.prepared, uniforms, textures, region, tiles=int(s == 1))
         if sprites > 0:
@@ -595,18 +599,15 @@ class SlicedDof:
             self._run_marks.buffer.bind_to_storage_buffer(MARKS_BINDING)
         tiles = (out[0] // 8, out[1] // 8, -(-out[2] // 8), -(-out[3] // 8))
         level.occupied.bind_to_image(0, read=False, write=True)
-        level.a.use(0)
-        level.b.use(1)
-        occ["u_a"].value = 0
-        occ["u_b"].value = 1
+        level.a.bind_to_image(1, read=True, write=False)  # (and for the gather)
+        level.b.bind_to_image(2, read=True, write=False)
         occ["u_tiles"].value = tiles
         occ["u_reach"].value = reach
         occ.run(-(-(tiles[2] - tiles[0]) // 8), -(-(tiles[3] - tiles[1]) // 8))
         self.ctx.memory_barrier()
         prog, vao = self._gather
         prog["u_edge"].value = edges
-        self._pass(prog, vao, target, {"u_a": 0, "u_b": 1, "u_occupied": 2}, [level.a, level.b, level.occupied], out,
-                   blend=True)
+        self._pass(prog, vao, target, {"u_occupied": 0}, [level.occupied], out, blend=True)
 
     def _end_run(self, run: list) -> None:
         """Upsample the run's accumulators into the frame's, behind what they hold, in the tiles

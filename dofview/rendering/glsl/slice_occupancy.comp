@@ -17,21 +17,21 @@ uniform int u_columns;     // the marks' tiles a row
 uniform ivec4 u_frame;     // full-resolution pixels marked within (x0, y0, x1, y1), GL rows
 
 layout(r32f, binding = 0) uniform writeonly image2D u_occupied;
-uniform sampler2D u_a;   // the prepared layer: colour / N(ρ)
-uniform sampler2D u_b;   // and (ρ, visible / N(ρ))
+layout(rgba32f, binding = 1) uniform readonly image2D u_a;  // the prepared layer: colour / N(ρ)
+layout(rg32f, binding = 2) uniform readonly image2D u_b;    // and (ρ, visible / N(ρ))
 uniform ivec4 u_tiles;   // (x0, y0, x1, y1) tiles, ends exclusive
 uniform int u_reach;     // the taps' largest offset along an axis, texels
 
 void main() {
     ivec2 t = u_tiles.xy + ivec2(gl_GlobalInvocationID.xy);
     if (t.x >= u_tiles.z || t.y >= u_tiles.w) return;
-    ivec2 last = textureSize(u_a, 0) - 1;
+    ivec2 last = imageSize(u_a) - 1;
     ivec2 lo = clamp(t * 8 - u_reach, ivec2(0), last);
     ivec2 hi = clamp(t * 8 + 7 + u_reach, ivec2(0), last);
     float widest = -1.0;
     for (int y = lo.y; y <= hi.y; ++y) {
         for (int x = lo.x; x <= hi.x; ++x) {
-            if (texelFetch(u_a, ivec2(x, y), 0).a > 0.0) widest = max(widest, abs(texelFetch(u_b, ivec2(x, y), 0).r));
+            if (imageLoad(u_a, ivec2(x, y)).a > 0.0) widest = max(widest, abs(imageLoad(u_b, ivec2(x, y)).r));
         }
     }
     imageStore(u_occupied, t, vec4(widest));

@@ -14,9 +14,10 @@
 // which are drawn does not follow the GPU's order: they are appended as if they fit, then
 // sprite_accept.comp keeps them if they fit in what is left of the frame's cap, or else draws
 // none and has this pass drawn again without highlights (the layer as it was, u_sprites false).
+// The layer is read through image units (cheaper than a sampler's fetches on llvmpipe).
 
-uniform sampler2D u_colour;
-uniform sampler2D u_depth;
+layout(rgba32f, binding = 3) uniform readonly image2D u_colour;  // the layer at its level
+layout(rgba32f, binding = 4) uniform readonly image2D u_depth;
 
 uniform int u_scale;
 uniform bool u_blur;       // false: a layer drawn blurred already (radius 0)
@@ -28,8 +29,8 @@ uniform sampler2D u_norm;  // N(ρ) (LensCell.norms), rows: fine in front, fine 
 uniform float u_norm_range;  // |ρ| of the whole range's last sample
 
 uniform bool u_sprites;        // take the highlights out (a reduced layer)
-uniform sampler2D u_full_colour;  // the layer at full resolution, colour
-uniform sampler2D u_full_depth;   // and depth sums with its visible coverage third
+layout(rgba32f, binding = 5) uniform readonly image2D u_full_colour;  // the layer at full resolution, colour
+layout(rgba32f, binding = 6) uniform readonly image2D u_full_depth;   // and depth sums, its visible coverage third
 uniform ivec4 u_region;        // the level's texels the layer was reduced into (x0, y0, x1, y1); beyond: empty
 uniform float u_bright;        // SliceRule.bright
 uniform float u_excess;        // SliceRule.excess
@@ -82,7 +83,7 @@ float chain_weight(ivec2 q, ivec2 size) {
 
 // The highlights of texel p's block appended as sprites, their light taken out of colour and depth.
 void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
-    ivec2 size = textureSize(u_colour, 0);
+    ivec2 size = imageSize(u_colour);
     float total = 0.0, count = 0.0;
     for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
@@ -90,7 +91,7 @@ void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
             if ((dx == 0 && dy == 0) || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             count += 1.0;
             if (all(greaterThanEqual(q, u_region.xy)) && all(lessThan(q, u_region.zw)))
-                total += brightness(texelFetch(u_colour, q, 0));
+                total += brightness(imageLoad(u_colour, q));
         }
     }
     float mean = total / max(count, 1.0);
@@ -101,19 +102,19 @@ void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
     // for rounding). This skips the block on all but the few texels that may hold a highlight.
     float none_below = max(u_dim, kb > 0.0 ? min(kb, mean + u_excess) : 0.0);
     if (brightness(colour) * float(u_scale * u_scale) <= 0.999 * none_below) return;
-    ivec2 full = textureSize(u_full_colour, 0);
+    ivec2 full = imageSize(u_full_colour);
     ivec2 lo = p * u_scale, hi = min(lo + u_scale, full);
     vec4 gone = vec4(0.0), gone_depth = vec4(0.0);
     for (int y = lo.y; y < hi.y; ++y) {
         for (int x = lo.x; x < hi.x; ++x) {
-            vec4 c = texelFetch(u_full_colour, ivec2(x, y), 0);
+            vec4 c = imageLoad(u_full_colour, ivec2(x, y));
             float lum = brightness(c);
             if (lum <= u_dim) continue;
             float ratio = kb > 0.0 ? clamp(lum / kb - 1.0, 0.0, 1.0) : 1.0;
             float excess = clamp((lum - mean) / u_excess - 1.0, 0.0, 1.0);
             float f = max(ratio, excess) * clamp(lum / u_dim - 1.0, 0.0, 1.0);
             if (f <= 0.0) continue;
-            vec4 d = texelFetch(u_full_depth, ivec2(x, y), 0);
+            vec4 d = imageLoad(u_full_depth, ivec2(x, y));
             if (d.w <= 0.0) continue;
             uint i = atomicAdd(instances, 1u);  // all of them counted, those beyond the list not kept:
             if (i >= u_cap) continue;           // the layer is then refused (sprite_accept.comp)
@@ -136,8 +137,8 @@ void take_highlights(ivec2 p, inout vec4 colour, inout vec4 depth) {
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 colour = texelFetch(u_colour, p, 0);
-    vec4 depth = colour.a > 0.0 ? texelFetch(u_depth, p, 0) : vec4(0.0);
+    vec4 colour = imageLoad(u_colour, p);
+    vec4 depth = colour.a > 0.0 ? imageLoad(u_depth, p) : vec4(0.0);
     if (u_sprites && colour.a > 0.0) take_highlights(p, colour, depth);
     float rho = 0.0;
     if (u_blur && depth.w > 0.0) {
