@@ -17,9 +17,10 @@ three quarters of its window's tiles in the shared scenes), then
    the layer's visible coverage beside them;
 2. slice_reduce.frag averages it down to its level 1/s (4 × 4 or 2 × 2 a pass) and
    slice_prepare.frag gives each texel its signed blur (the CoC of its mean inverse depth) and
-   divides it by the kernel's N;
+   divides it by the kernel's N (slice_blur.glsl);
    the slice target is emptied (slice_empty.frag) after the prepare, which reads it at full
-   resolution for step 4;
+   resolution for step 4; a layer gathered at full resolution is prepared and emptied by step 1's
+   pass itself;
 3. slice_gather.frag spreads every texel over the kernel at its own blur (slice_kernel.glsl: the
    aperture, or a lens cell of progressive refinement), blended front to back into the frame's
    accumulators ("over" colour, summed visible coverage), or for a reduced layer into its run's
@@ -208,12 +209,14 @@ class SlicedDof:
         tile = {"TILE": TILE, "MARKS_BINDING": MARKS_BINDING}
         self._list = compute_shader(ctx, "slice_tiles.comp", tile)
         self._visible = compute_shader(ctx, "slice_visible.comp", tile)
+        # at full resolution, the visible pass also prepares the layer and empties the slice target
+        self._visible_prepare = compute_shader(ctx, "slice_visible.comp", {
+            **tile, "PREPARE": 1, "NORM_SAMPLES": NORM_SAMPLES, "NORM_FINE": repr(NORM_FINE)})
         self._accept = compute_shader(ctx, "sprite_accept.comp")
         self._occupancy = compute_shader(ctx, "slice_occupancy.comp", tile)
         self._reduce = program("slice_reduce.frag")
         # the passes at full resolution, drawn over the tiles a layer's blend marked
         self._reduce_tiles = program("slice_reduce.frag", "slice_tiles.vert")
-        self._prepare_tiles = program("slice_prepare.frag", "slice_tiles.vert")
         self._empty_tiles = program("slice_empty.frag", "slice_tiles.vert")
         self._upsample_tiles = program("slice_upsample.frag", "slice_tiles.vert")
         self._tile_commands = ctx.buffer(reserve=32)  # slice_tiles.comp's indirect draw and dispatch
@@ -459,7 +462,9 @@ class SlicedDof:
         (slice_tiles.comp), slice_visible.comp over them, then slice_reduce.frag down to the level
         and slice_prepare.frag, after clearing what the last layer prepared there wrote (the gather
         reads around its blocks, where the level must be empty); the passes at full resolution
-        run in the listed tiles only, and the slice target is emptied there once read.
+        run in the listed tiles only, and the slice target is emptied there once read. At full
+        resolution slice_visible.comp prepares the layer and empties the slice target itself (one
+        pass reading the layer once, instead of three).
         ``sprites``: the frame's cap of sprites, for which the prepare also takes the layer's
         highlights out into the sprite list, and their count into :attr:`_sprite_draw` (0: no
         highlights): all of them if they fit in what is left of the cap, else none
@@ -468,23 +473,34 @@ class SlicedDof:
         Returns the level's blocks."""
         s = layer.scale
         self._list_tiles(box, self._marks)
+        self._clear(level.prepared, level.dirty)
+        uniforms = {"u_norm_range": self._norms_for[1], "u_scale": s,
+                    "u_blur": not layer.lensed, "u_aperture": lens.aperture,
+                    "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
+                    "u_rmax": layer.radius / s}
+        self._norms.bind_to_image(7, read=True, write=False)
         self.acc_depth.bind_to_image(0, read=True, write=True)
         self.slice_colour.bind_to_image(1, read=True, write=True)
         self.slice_depth.bind_to_image(2, read=True, write=True)
+        if s == 1:  # one pass: visible, prepared into the level and the slice target emptied
+            visible = self._visible_prepare
+            for name, value in {"u_box": box, **uniforms}.items():
+                visible[name].value = value
+            level.a.bind_to_image(3, read=False, write=True)
+            level.b.bind_to_image(5, read=False, write=True)
+            visible.run_indirect(self._tile_commands, offset=16)
+            self.ctx.memory_barrier()
+            level.dirty = box
+            return box
         self._visible["u_box"].value = box
         self._visible.run_indirect(self._tile_commands, offset=16)
         self.ctx.memory_barrier()
         colour, depth, region = self._reduce_layer(box, s)
-        self._clear(level.prepared, level.dirty)
         level.dirty = region
-        prog, vao = self._prepare_tiles if s == 1 else self._prepare  # at full resolution: its tiles
-        uniforms = {"u_norm": 0, "u_norm_range": self._norms_for[1], "u_scale": s,
-                    "u_blur": not layer.lensed, "u_aperture": lens.aperture,
-                    "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
-                    "u_rmax": layer.radius / s, "u_sprites": sprites > 0, "u_cap": max(sprites, 0)}
+        prog, vao = self._prepare
+        uniforms.update({"u_sprites": sprites > 0, "u_cap": max(sprites, 0)})
         colour.bind_to_image(3, read=True, write=False)
         depth.bind_to_image(4, read=True, write=False)
-        textures = [self._norms]
         if sprites > 0:  # the highlights' uniforms, and this layer's draw of none so far
             self._sprite_draw.write(_NO_SPRITES)
             self._sprite_list.bind_to_storage_buffer(0)
@@ -493,7 +509,7 @@ class SlicedDof:
             self.slice_depth.bind_to_image(6, read=True, write=False)
             uniforms.update({"u_region": region,
                              "u_bright": rule.bright, "u_excess": rule.excess, "u_dim": rule.dim})
-        self._pass(prog, vao, level.prepared, uniforms, textures, region, tiles=int(s == 1))
+        self._pass(prog, vao, level.prepared, uniforms, [], region)
         if sprites > 0:
             # drawn all or none (the GPU's order must not choose which): a layer whose highlights
             # do not fit in what is left of the cap is prepared again without them
@@ -503,7 +519,7 @@ class SlicedDof:
             self._accept["u_cap"].value = sprites
             self._accept.run(1)
             self.ctx.memory_barrier()
-            self._pass(prog, vao, level.prepared, {**uniforms, "u_sprites": False}, textures, region, again=True)
+            self._pass(prog, vao, level.prepared, {**uniforms, "u_sprites": False}, [], region, again=True)
         # (emptied only now: the highlights are taken from the full-resolution layer)
         self._pass(*self._empty_tiles, self.slice_fbo, {}, [], box, tiles=1)
         return region
@@ -686,7 +702,7 @@ class SlicedDof:
     def release(self) -> None:
         """Free the slice targets and programs."""
         self._release_targets()
-        for prog, vao in (self._reduce, self._reduce_tiles, self._prepare, self._prepare_tiles, self._empty_tiles,
+        for prog, vao in (self._reduce, self._reduce_tiles, self._prepare, self._empty_tiles,
                           self._gather, self._sprite, self._upsample_tiles, self._resolve):
             vao.release()
             prog.release()
@@ -694,6 +710,7 @@ class SlicedDof:
         self._sprite_draw.release()
         self._again.release()
         self._visible.release()
+        self._visible_prepare.release()
         self._list.release()
         self._tile_commands.release()
         self._occupancy.release()

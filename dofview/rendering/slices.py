@@ -522,7 +522,7 @@ def plan_frame(scene, order: np.ndarray, camera: Camera, lens: Lens, settings: R
 NORM_SAMPLES = 2048
 """Samples per sign and range of the kernels' N(ρ) tables (LensCell.norms)."""
 NORM_FINE = 2.0
-"""|ρ| (level px) up to which slice_prepare.frag reads N(ρ) from a fine table: where N is small,
+"""|ρ| (level px) up to which slice_blur.glsl reads N(ρ) from a fine table: where N is small,
 its kinks (every tap's ramp starts and ends) weigh most against it."""
 LEVEL_RADIUS = 8.5
 """The largest blur radius (px) a layer has at its level (plan_layers: the rule's limit + 2, 8 with
@@ -643,7 +643,7 @@ class LensCell:
     def norms(self, radius: float, samples: int = NORM_SAMPLES) -> np.ndarray:
         """(2, samples) float32 the kernel's N(ρ) = Σ_taps w(d, ρ) at ρ = radius·i/(samples − 1),
         i = 0 … samples − 1 (row 0: in front of focus) and at −ρ (row 1: behind it): the table that
-        slice_prepare.frag interpolates linearly instead of summing every tap per texel (one over
+        slice_blur.glsl interpolates linearly instead of summing every tap per texel (one over
         [0, :data:`NORM_FINE`], one over the frame's whole range; tests hold them within 1e-3 of
         N)."""
         taps = self.taps(radius)
@@ -746,7 +746,7 @@ def prepare(colour: np.ndarray, depth_sums: np.ndarray, acc_depth: np.ndarray, l
             rule: SliceRule, cell: LensCell, taps: np.ndarray,
             budget: int = 0) -> tuple[np.ndarray, np.ndarray, Sprites | None]:
     """One layer made ready for its gather at its level 1/s (slice_visible.comp, slice_reduce.frag,
-    slice_prepare.frag).
+    slice_prepare.frag and slice_blur.glsl).
 
     ``colour`` (H, W, 4) its blend-space premultiplied RGBA, ``depth_sums`` (H, W, 4) its
     (Σw·z, Σw/z, 0, Σw); ``acc_depth`` (H, W, 4) float64 the depth sums of the layers in front,
