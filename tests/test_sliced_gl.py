@@ -618,3 +618,57 @@ def test_at_aperture_zero_no_gaussian_is_planned(backend, monkeypatch):
     finally:
         r.release()
     assert psnr(sliced.rgba, pin.rgba) >= 60.0
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_the_pass_profile_times_each_kind_and_draws_the_same_frame(backend):
+    """Renderer.sliced_pass_times waits for the GL after each kind of pass and times it: the frame
+    it leaves is the plain draw's, bit for bit (two planes at 16 px: reduced layers with highlight
+    sprites, full-resolution layers; no sprites, whose additive blend follows the GPU's order), it
+    names the kinds a layered frame draws and no others, and only the sliced mode has a profile."""
+    from dofview.bench.sliced_study import PASS_KINDS
+
+    scene = load_scene(TWO_PLANES, progress=False)
+    cam, lens = _view(scene, 16.0)
+    r = get_backend(backend, scene)
+    r.slice_rule = replace(SLICE_RULE, sprites=0.0)
+    try:
+        r.draw(cam, lens, SLICED)
+        plain = np.frombuffer(r.colour_tex.read(), np.float32).copy(), np.frombuffer(r.depth_tex.read(), np.float32).copy()
+        times = r.sliced_pass_times(cam, lens, SLICED)
+        timed = np.frombuffer(r.colour_tex.read(), np.float32), np.frombuffer(r.depth_tex.read(), np.float32)
+        assert np.array_equal(plain[0], timed[0]) and np.array_equal(plain[1], timed[1])
+        assert {layer.scale for layer in r.sliced_layers} - {1}, "the case must have reduced layers"
+        assert set(times) <= set(PASS_KINDS)
+        drawn = {"plan", "clear", "blend", "list tiles", "visible", "visible + prepare", "reduce", "prepare", "empty",
+                 "occupancy", "gather", "upsample", "resolve"}
+        assert drawn <= {k for k, ms in times.items() if ms > 0.0}, times
+        with pytest.raises(ValueError, match="sliced"):
+            r.sliced_pass_times(cam, lens, RenderSettings(dof="splat"))
+        assert r._sliced.timer is None  # the profile leaves no timer behind
+    finally:
+        r.release()
+
+
+def test_the_pass_profile_command_writes_its_table_and_figure(tmp_path, capsys):
+    """``python -m dofview.bench.sliced_study passes`` prints a row per backend and case (the
+    kinds' columns, the pinhole and sliced frames) and writes the stacked-bar figure."""
+    from PIL import Image
+
+    from dofview.bench.sliced_study import PASS_KINDS
+    from dofview.bench.sliced_study import main as study
+
+    png = tmp_path / "passes.png"
+    assert study(["passes", str(TWO_PLANES), "--width", "96", "--height", "64", "--reps", "1",
+                  "--raster", "quad", "--figure", str(png)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    head, rows = lines[0].split("\t"), [line.split("\t") for line in lines[1:]]
+    assert head[-len(PASS_KINDS):] == list(PASS_KINDS)
+    assert [(row[1], row[2]) for row in rows] == [("quad", "A=100"), ("quad", "16 px")]
+    for row in rows:
+        assert float(row[head.index("pinhole ms")]) > 0 and float(row[head.index("sliced ms")]) > 0
+        assert float(row[head.index("blend")]) > 0
+        kinds = sum(float(v) for v in row[-len(PASS_KINDS):])
+        assert kinds == pytest.approx(float(row[head.index("profiled ms")]), abs=0.1 * len(PASS_KINDS))
+    with Image.open(png) as im:
+        assert im.width > 600 and im.height > 100

@@ -5,6 +5,8 @@ lens next to the published per-splat anchors, and its frame time against the pin
         [--rule KEY=V[,KEY=V]] ... [--markdown TABLE.md] [--figure PNG]
     python -m dofview.bench.sliced_study timing SCENE... [--width 640 --height 360] [--reps 3]
         [--rule KEY=V[,KEY=V]] ... [--places DIR]
+    python -m dofview.bench.sliced_study passes SCENE... [--width 640 --height 360] [--reps 3]
+        [--places DIR] [--raster quad|compute] [--figure PNG]
 
 quality: per scene (the five real ones; the views from inside the shared places,
 dofview/bench/places: corridor_1 … showroom_2, focused on their subjects, blur between the 20th and
@@ -22,6 +24,11 @@ camera and lenses) backend and case (A = 100 px·unit; largest blur in view 16 p
 frame time of the per-splat and the sliced mode (each rule) over interleaved draws, as ratios to
 the pinhole frame's (A = 0, per-splat, default τ: one splatting pass), and the sliced mode's GPU
 memory per megapixel.
+
+passes: for the same scenes and cases, where the sliced frame's time goes: each kind of pass
+(Renderer.sliced_pass_times: the GL waited for after each) in ms, the median over ``--reps``
+frames, beside the pinhole frame and the sliced frame drawn without the waits. ``--figure``: a PNG
+of the kinds as stacked bars in units of the pinhole frame.
 """
 
 from __future__ import annotations
@@ -305,6 +312,87 @@ def timing(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---- where the sliced frame's time goes ---------------------------------------------------------
+PASS_KINDS = ("plan", "clear", "prepare splats", "blend", "list tiles", "visible", "visible + prepare", "reduce",
+              "prepare", "empty", "occupancy", "gather", "sprites", "upsample", "resolve", "other")
+"""The kinds of pass a sliced frame's profile names (rendering/sliced.py), in the order drawn."""
+
+
+def passes(args: argparse.Namespace) -> int:
+    from dofview.io import load_scene
+
+    rows = []  # (label, pinhole ms, sliced ms, {kind: ms})
+    print("scene\tbackend\tcase\tlayers\tpinhole ms\tsliced ms\tsliced/pinhole\tprofiled ms\t"
+          + "\t".join(PASS_KINDS))
+    for path in args.scenes:
+        place_lenses = None
+        if args.places is not None and str(path) in place_view_names():
+            scene, cam, place_lenses = scene_cases(str(path), args.places, args.width, args.lod)
+        else:
+            scene = load_scene(path, progress=False)
+            cam = study_views(scene, 1, args.width, args.height)[0]
+        for backend in args.raster or ("quad", "compute"):
+            r = get_backend(backend, scene)
+            try:
+                blur16 = place_lenses(r)[-1][1] if place_lenses else cases_for(r, cam, blurs=(16.0,))[0]
+                for label, lens in (("A=100", Lens(blur16.focus, 100.0)), ("16 px", blur16)):
+                    pinhole = (Lens(lens.focus, 0.0), PINHOLE)
+                    r.draw(cam, lens, SLICED)  # compiles and allocates
+                    r.draw(cam, *pinhole)
+                    frame = {"pinhole": [], "sliced": []}
+                    kinds: dict[str, list[float]] = {k: [] for k in PASS_KINDS}
+                    for _ in range(args.reps):
+                        for mode, (ln, st) in (("pinhole", pinhole), ("sliced", (lens, SLICED))):
+                            r.ctx.finish()
+                            t0 = time.perf_counter()
+                            r.draw(cam, ln, st)
+                            r.ctx.finish()
+                            frame[mode].append((time.perf_counter() - t0) * 1e3)
+                        laps = r.sliced_pass_times(cam, lens, SLICED)
+                        for k in PASS_KINDS:
+                            kinds[k].append(laps.get(k, 0.0))
+                    med = {k: float(np.median(v)) for k, v in kinds.items()}
+                    ph, sl = float(np.median(frame["pinhole"])), float(np.median(frame["sliced"]))
+                    name = Path(str(path)).name
+                    rows.append((f"{name} {backend} {label}", ph, sl, med))
+                    print(f"{name}\t{backend}\t{label}\t{len(r.sliced_layers)}\t{ph:.0f}\t{sl:.0f}\t{sl / ph:.2f}\t"
+                          f"{sum(med.values()):.0f}\t" + "\t".join(f"{med[k]:.1f}" for k in PASS_KINDS), flush=True)
+            finally:
+                r.release()
+    if args.figure is not None:
+        pass_figure(args.figure, rows, f"{args.width}×{args.height}")
+    return 0
+
+
+def pass_figure(path: Path, rows: list[tuple[str, float, float, dict[str, float]]], size: str) -> None:
+    """Write a PNG: per row the sliced frame's passes as stacked bars in units of the pinhole frame,
+    with the frame drawn without the waits marked, and the targets 1.2× and 1.5×."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(12, 0.42 * len(rows) + 1.6))
+    colours = plt.get_cmap("tab20").colors
+    y = np.arange(len(rows))[::-1]
+    for i, kind in enumerate(PASS_KINDS):
+        left = np.array([sum(m[k] for k in PASS_KINDS[:i]) / ph for _, ph, _, m in rows])
+        width = np.array([m[kind] / ph for _, ph, _, m in rows])
+        if width.any():
+            ax.barh(y, width, left=left, color=colours[i % len(colours)], label=kind, height=0.7)
+    ax.scatter([sl / ph for _, ph, sl, _ in rows], y, marker="|", s=300, color="black", zorder=3,
+               label="sliced frame drawn without waits")
+    for x, style in ((1.0, "-"), (1.2, "--"), (1.5, ":")):
+        ax.axvline(x, color="grey", linestyle=style, linewidth=1)
+    ax.set_yticks(y, [label for label, *_ in rows])
+    ax.set_xlabel(f"time in units of the pinhole frame ({size}; lines at 1, 1.2 and 1.5)")
+    ax.set_title("Where the sliced frame's time goes (each kind of pass timed between GL waits)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m dofview.bench.sliced_study", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -328,8 +416,17 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument("--rule", action="append", help="a slicing beside the default: KEY=V[,KEY=V] of SliceRule; repeatable")
     t.add_argument("--places", type=Path, help="folder of the shared places: SCENE may then name a place view")
     t.add_argument("--lod", type=int, default=1, help="the showroom's level (0: 1.5M Gaussians, 1: 747k)")
+    p = sub.add_parser("passes")
+    p.add_argument("scenes", type=Path, nargs="+")
+    p.add_argument("--width", type=int, default=640)
+    p.add_argument("--height", type=int, default=360)
+    p.add_argument("--reps", type=int, default=3)
+    p.add_argument("--places", type=Path, help="folder of the shared places: SCENE may then name a place view")
+    p.add_argument("--lod", type=int, default=1, help="the showroom's level (0: 1.5M Gaussians, 1: 747k)")
+    p.add_argument("--raster", action="append", choices=("quad", "compute"), help="a backend (default: both); repeatable")
+    p.add_argument("--figure", type=Path, help="PNG of the passes as stacked bars, in units of the pinhole frame")
     args = ap.parse_args(argv)
-    return quality(args) if args.what == "quality" else timing(args)
+    return {"quality": quality, "timing": timing, "passes": passes}[args.what](args)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ keeps it, with :meth:`Renderer.bind_scene` binding the scene's storage buffers f
 
 from __future__ import annotations
 
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -249,11 +250,7 @@ class Renderer(ABC):
         if count:
             self._counter.write(np.zeros(1, np.uint32).tobytes())
         if settings.dof == "sliced":
-            if self._sliced is None:
-                from dofview.rendering.sliced import SlicedDof  # its shaders compile on first use
-
-                self._sliced = SlicedDof(self)
-            self._sliced.draw(camera, lens, settings, count, cell)
+            self._sliced_mode().draw(camera, lens, settings, count, cell)
         else:
             if cell is not None:
                 raise ValueError("the per-splat mode blurs with no lens cell")
@@ -374,16 +371,50 @@ class Renderer(ABC):
         counts, colour, depth = self._deep(camera, lens, settings, deep, encoded)
         return DeepFrame(counts, colour, depth)
 
+    def _sliced_mode(self):
+        """The sliced mode (rendering/sliced.py's SlicedDof), made on first use: its shaders compile then."""
+        if self._sliced is None:
+            from dofview.rendering.sliced import SlicedDof
+
+            self._sliced = SlicedDof(self)
+        return self._sliced
+
+    def sliced_pass_times(self, camera: Camera, lens: Lens, settings: RenderSettings) -> dict[str, float]:
+        """Draw the sliced frame (as :meth:`draw` with ``settings.dof`` "sliced"), waiting for the
+        GL after each kind of pass: wall ms per kind ("plan", "blend", "gather", …: rendering/
+        sliced.py; "other": what follows the resolve). The pass profile of
+        ``python -m dofview.bench.sliced_study passes``; the waits make the frame slower than a
+        :meth:`draw`, so its sum is not a frame time."""
+        if settings.dof != "sliced":
+            raise ValueError(f"a pass profile is of the sliced mode, not {settings.dof!r}")
+        sliced = self._sliced_mode()
+        times: dict[str, float] = {}
+        last = 0.0
+
+        def lap(kind: str) -> None:
+            nonlocal last
+            self.ctx.finish()
+            now = time.perf_counter()
+            times[kind] = times.get(kind, 0.0) + (now - last) * 1e3
+            last = now
+
+        self.ctx.finish()
+        last = time.perf_counter()
+        sliced.timer = lap
+        try:
+            self.draw(camera, lens, settings)
+        finally:
+            sliced.timer = None
+        lap("other")
+        return times
+
     def _sliced_deep(self, camera: Camera, lens: Lens, settings: RenderSettings, deep: DeepSettings,
                      encoded: bool) -> DeepFrame | None:
         """The sliced mode's deep image, drawn with a capture of its layers (None where its plan
         was the pinhole's: every Gaussian in focus, drawn unblurred)."""
         from dofview.rendering.deep_sliced import SliceCapture, layer_depths
-        from dofview.rendering.sliced import SlicedDof
 
-        if self._sliced is None:
-            self._sliced = SlicedDof(self)
-        sliced = self._sliced
+        sliced = self._sliced_mode()
         capture = SliceCapture(camera.width, camera.height, lambda: sliced.guard)
         self._sliced.capture = capture
         try:

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import moderngl
@@ -248,6 +249,10 @@ class SlicedDof:
         self.capture = None
         """Set by the deep image (rendering/deep_sliced.py, a SliceCapture): told where each layer
         was composited, to read it back; the draw itself is unchanged."""
+        self.timer: Callable[[str], None] | None = None
+        """Set by the pass profile (``python -m dofview.bench.sliced_study passes``): called with
+        the kind of the GPU work issued since its last call ("blend", "gather", …), to wait for it
+        and time it; the draw is otherwise unchanged."""
 
     # ---- targets -------------------------------------------------------------------------------
     def _texture(self, size: tuple[int, int], components: int = 4) -> moderngl.Texture:
@@ -332,6 +337,7 @@ class SlicedDof:
                 self._planner = GpuLayerPlan(r)
             size = math.sqrt(cell.share)
             plan = frame_plan(self._planner.measure(camera, lens, settings, rule, size), camera, rule, size)
+            self._lap("plan")
         self.layers, self.guard, self.pinhole = plan.layers, plan.guard, plan.pinhole
         if plan.pinhole:
             # nothing to blur (A = 0): the layer is the pinhole frame, drawn straight into the
@@ -347,6 +353,7 @@ class SlicedDof:
         frame = (self.guard, self.guard, w - self.guard, h - self.guard)
         self._clear(self.frame_fbo, frame)
         self.acc_fbo.clear(0.0, 0.0, 0.0, 0.0)  # the pinhole's depth sums, accumulated layer by layer
+        self._lap("clear")
         cap = sprite_cap(rule, w - 2 * self.guard, h - 2 * self.guard)
         sprite_frame = (max(w, h) - 2 * self.guard) / math.sqrt(cell.share)  # in px of the kernel's blur
         self._sprites_for(cap)
@@ -366,9 +373,11 @@ class SlicedDof:
             if setup is not prepared:
                 r.prepare_splats(camera, *setup, span=spans[index])
                 prepared = setup
+                self._lap("prepare splats")
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
             r.splat_range(layer.first, layer.end, self.slice_fbo, box, self._marks)
+            self._lap("blend")
             reach = self._write_taps(cell, layer.radius / layer.scale)
             sprites = has_sprites(layer, rule, cap, sprite_frame)  # a reduced layer's highlights
             blocks = self._prepare_layer(level, gl_box, layer, lens, rule, cap if sprites else 0)
@@ -380,6 +389,7 @@ class SlicedDof:
                 if fresh:
                     level.run.clear(0.0, 0.0, 0.0, 0.0)
                     run.extend([level, None])
+                    self._lap("clear")
                 if sprites:  # each reaches its own kernel's extent beyond the layer's blocks
                     spread = math.ceil(layer.radius * cell.reach + 1.5)
                     lit = _intersect((blocks[0] * s - spread, blocks[1] * s - spread, blocks[2] * s + spread,
@@ -409,6 +419,11 @@ class SlicedDof:
         g = self.guard
         self._pass(prog, vao, self.output_fbo, {"u_over": 0, "u_visible": 1, "u_depth": 2, "u_guard": g},
                    [self.over, self.visible, self.acc_depth], (0, 0, w - 2 * g, h - 2 * g))
+        self._lap("resolve")
+
+    def _lap(self, kind: str) -> None:
+        if self.timer is not None:
+            self.timer(kind)
 
     @staticmethod
     def _blocks(box: Box, scale: int) -> Box:
@@ -473,7 +488,9 @@ class SlicedDof:
         Returns the level's blocks."""
         s = layer.scale
         self._list_tiles(box, self._marks)
+        self._lap("list tiles")
         self._clear(level.prepared, level.dirty)
+        self._lap("clear")
         uniforms = {"u_norm_range": self._norms_for[1], "u_scale": s,
                     "u_blur": not layer.lensed, "u_aperture": lens.aperture,
                     "u_inv_focus": float32_uniform(lens.inv_focus), "u_shrink": 4.0 * rule.spread * (s * s - 1),
@@ -490,12 +507,15 @@ class SlicedDof:
             level.b.bind_to_image(5, read=False, write=True)
             visible.run_indirect(self._tile_commands, offset=16)
             self.ctx.memory_barrier()
+            self._lap("visible + prepare")
             level.dirty = box
             return box
         self._visible["u_box"].value = box
         self._visible.run_indirect(self._tile_commands, offset=16)
         self.ctx.memory_barrier()
+        self._lap("visible")
         colour, depth, region = self._reduce_layer(box, s)
+        self._lap("reduce")
         level.dirty = region
         prog, vao = self._prepare
         uniforms.update({"u_sprites": sprites > 0, "u_cap": max(sprites, 0)})
@@ -520,8 +540,10 @@ class SlicedDof:
             self._accept.run(1)
             self.ctx.memory_barrier()
             self._pass(prog, vao, level.prepared, {**uniforms, "u_sprites": False}, [], region, again=True)
+        self._lap("prepare")
         # (emptied only now: the highlights are taken from the full-resolution layer)
         self._pass(*self._empty_tiles, self.slice_fbo, {}, [], box, tiles=1)
+        self._lap("empty")
         return region
 
     def _list_tiles(self, box: Box, marks: TileMarks) -> None:
@@ -593,6 +615,7 @@ class SlicedDof:
         vao.render_indirect(self._sprite_draw, moderngl.TRIANGLE_STRIP, count=1)
         ctx.disable(moderngl.BLEND)
         ctx.scissor = None
+        self._lap("sprites")
 
     def _gather_layer(self, level: _Level, target: moderngl.Framebuffer, out: Box, reach: int, edges: Edges,
                       frame: Box) -> None:
@@ -621,9 +644,11 @@ class SlicedDof:
         occ["u_reach"].value = reach
         occ.run(-(-(tiles[2] - tiles[0]) // 8), -(-(tiles[3] - tiles[1]) // 8))
         self.ctx.memory_barrier()
+        self._lap("occupancy")
         prog, vao = self._gather
         prog["u_edge"].value = edges
         self._pass(prog, vao, target, {"u_occupied": 0}, [level.occupied], out, blend=True)
+        self._lap("gather")
 
     def _end_run(self, run: list) -> None:
         """Upsample the run's accumulators into the frame's, behind what they hold, in the tiles
@@ -632,6 +657,7 @@ class SlicedDof:
         level, box = run
         if box is not None:
             self._list_tiles(box, self._run_marks)
+            self._lap("list tiles")
             prog, vao = self._upsample_tiles
             self._linear.use(0)  # the run's accumulators, filtered bilinearly
             self._linear.use(1)
@@ -641,7 +667,9 @@ class SlicedDof:
                        tiles=1)
             self._linear.clear(0)
             self._linear.clear(1)
+            self._lap("upsample")
             self._pass(*self._empty_tiles, self.sprite_fbo, {}, [], box, tiles=1)
+            self._lap("empty")
         run.clear()
 
     def _clear(self, fbo: moderngl.Framebuffer, box: Box | None) -> None:
