@@ -354,13 +354,15 @@ def passes(args: argparse.Namespace) -> int:
                     med = {k: float(np.median(v)) for k, v in kinds.items()}
                     ph, sl = float(np.median(frame["pinhole"])), float(np.median(frame["sliced"]))
                     name = Path(str(path)).name
+                    name = Path(str(path)).parent.name if name == "lod-meta.json" else name  # a LOD set: its folder
                     rows.append((f"{name} {backend} {label}", ph, sl, med))
                     print(f"{name}\t{backend}\t{label}\t{len(r.sliced_layers)}\t{ph:.0f}\t{sl:.0f}\t{sl / ph:.2f}\t"
                           f"{sum(med.values()):.0f}\t" + "\t".join(f"{med[k]:.1f}" for k in PASS_KINDS), flush=True)
             finally:
                 r.release()
     if args.figure is not None:
-        pass_figure(args.figure, rows, f"{args.width}×{args.height}")
+        size = f"{args.width}×{args.height}" + (f", places {args.width}×{args.width * 3 // 4}" if args.places else "")
+        pass_figure(args.figure, rows, size)
     return 0
 
 
