@@ -8,8 +8,9 @@
 # a frame, the sliced mode's layers and FPS per backend, the renderer's GPU bytes, and the peak GPU
 # memory seen by nvidia-smi; then the compute backend's tile / pixels-per-thread variants at 1M
 # (per-splat); then the viewer's frame time while the focus slider is dragged, at each size
-# (scripts/viewer_budget.py --drag focus). Everything goes to $OUT (default ./gpu_bench_out) as JSON,
-# PNG and logs. Run from the repository root: OUT=/some/dir scripts/gpu_bench.sh
+# (scripts/viewer_budget.py --drag focus); then the sliced frame's pass profile on the repository's
+# scene stand-ins (python -m dofview.bench.sliced_study passes). Everything goes to $OUT (default
+# ./gpu_bench_out) as JSON, PNG and logs. Run from the repository root: OUT=/some/dir scripts/gpu_bench.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-gpu_bench_out}
@@ -47,6 +48,13 @@ for n in ${SIZES//,/ }; do
     --json "$OUT/viewer_focus_$n.json" > "$OUT/viewer_focus_$n.log" 2>&1 \
     || echo "viewer focus drag at $n failed (see its log)" >> "$OUT/errors.txt"
 done
+
+# Where the sliced frame's time goes on this GPU (issue 28; llvmpipe's figure is in
+# docs/BENCHMARKS.md "Where the sliced frame's time goes"): each kind of pass timed between GL waits,
+# on the repository's scene stand-ins, both backends, A = 100 and 16 px.
+python -m dofview.bench.sliced_study passes tests/data/two_planes.ply tests/data/burger.ply tests/data/tap.spz \
+  --width 1200 --height 675 --reps 5 --figure "$OUT/sliced_passes.png" > "$OUT/sliced_passes.tsv" 2> "$OUT/sliced_passes.log" \
+  || echo "the pass profile failed (see its log)" >> "$OUT/errors.txt"
 
 kill $MONITOR 2>/dev/null || true
 python - "$OUT" <<'PY'
