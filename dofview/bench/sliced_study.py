@@ -265,24 +265,35 @@ def quality(args: argparse.Namespace) -> int:
 
 
 # ---- timing -----------------------------------------------------------------------------------------
-def timing(args: argparse.Namespace) -> int:
+def timing_views(args: argparse.Namespace):
+    """(scene, camera, place lenses or None) of each of ``args.scenes`` (timing, passes): a file at
+    its study view, or with ``--places`` a place view at its own camera."""
     from dofview.io import load_scene
 
+    for path in args.scenes:
+        if args.places is not None and str(path) in place_view_names():
+            yield scene_cases(str(path), args.places, args.width, args.lod)
+        else:
+            scene = load_scene(path, progress=False)
+            yield scene, study_views(scene, 1, args.width, args.height)[0], None
+
+
+def timing_lenses(renderer: Renderer, camera: Camera, place_lenses) -> tuple[Lens, Lens]:
+    """The timed cases' lenses: A = 100 px·unit and the largest blur in view 16 px (a place view's
+    own), both focused as the latter."""
+    blur16 = place_lenses(renderer)[-1][1] if place_lenses else cases_for(renderer, camera, blurs=(16.0,))[0]
+    return Lens(blur16.focus, 100.0), blur16
+
+
+def timing(args: argparse.Namespace) -> int:
     rules = [SLICE_RULE] + [parse_rule(r) for r in args.rule or []]
     print("scene\tbackend\tcase\tlayers\tsplat/pinhole\t" + "\t".join(f"{rule_name(r)}/pinhole" for r in rules)
           + "\tpinhole ms\tsliced MB/Mpx")
-    for path in args.scenes:
-        place_lenses = None
-        if args.places is not None and str(path) in place_view_names():
-            scene, cam, place_lenses = scene_cases(str(path), args.places, args.width, args.lod)
-        else:
-            scene = load_scene(path, progress=False)
-            cam = study_views(scene, 1, args.width, args.height)[0]
+    for scene, cam, place_lenses in timing_views(args):
         for backend in ("quad", "compute"):
             r = get_backend(backend, scene)
             try:
-                blur16 = place_lenses(r)[-1][1] if place_lenses else cases_for(r, cam, blurs=(16.0,))[0]
-                for label, lens in (("A=100", Lens(blur16.focus, 100.0)), ("blur16", blur16)):
+                for label, lens in zip(("A=100", "blur16"), timing_lenses(r, cam, place_lenses)):
                     modes = {"pinhole": (Lens(lens.focus, 0.0), PINHOLE, None), "splat": (lens, PINHOLE, None),
                              **{i: (lens, SLICED, rule) for i, rule in enumerate(rules)}}
                     times: dict[object, list[float]] = {m: [] for m in modes}
@@ -319,23 +330,14 @@ PASS_KINDS = ("plan", "clear", "prepare splats", "blend", "list tiles", "visible
 
 
 def passes(args: argparse.Namespace) -> int:
-    from dofview.io import load_scene
-
     rows = []  # (label, pinhole ms, sliced ms, {kind: ms})
     print("scene\tbackend\tcase\tlayers\tpinhole ms\tsliced ms\tsliced/pinhole\tprofiled ms\t"
           + "\t".join(PASS_KINDS))
-    for path in args.scenes:
-        place_lenses = None
-        if args.places is not None and str(path) in place_view_names():
-            scene, cam, place_lenses = scene_cases(str(path), args.places, args.width, args.lod)
-        else:
-            scene = load_scene(path, progress=False)
-            cam = study_views(scene, 1, args.width, args.height)[0]
+    for path, (scene, cam, place_lenses) in zip(args.scenes, timing_views(args)):
         for backend in args.raster or ("quad", "compute"):
             r = get_backend(backend, scene)
             try:
-                blur16 = place_lenses(r)[-1][1] if place_lenses else cases_for(r, cam, blurs=(16.0,))[0]
-                for label, lens in (("A=100", Lens(blur16.focus, 100.0)), ("16 px", blur16)):
+                for label, lens in zip(("A=100", "16 px"), timing_lenses(r, cam, place_lenses)):
                     pinhole = (Lens(lens.focus, 0.0), PINHOLE)
                     r.draw(cam, lens, SLICED)  # compiles and allocates
                     r.draw(cam, *pinhole)
