@@ -32,32 +32,27 @@ void main() {
     ivec2 q = ivec2(tiles[index]) * TILE + ivec2(gl_LocalInvocationID.xy);
     if (any(lessThan(q, u_box.xy)) || q.x >= u_box.z || q.y >= u_box.w) return;
     vec4 c = imageLoad(u_colour, q);
-#ifdef PREPARE
     vec4 d = vec4(0.0);
     if (c.a > 0.0) {  // else nothing was drawn here (the depth sums are 0 too)
         d = imageLoad(u_depth, q);
         vec4 acc = imageLoad(u_acc, q);
-        float visible = (1.0 - acc.z) * c.a;
+        float visible = (1.0 - acc.z) * c.a;  // under the layers in front
         vec4 add = (1.0 - acc.a) * d;
         add.z = visible;
         imageStore(u_acc, q, acc + add);
         d.z = visible;
+#ifdef PREPARE
         imageStore(u_colour, q, vec4(0.0));
         imageStore(u_depth, q, vec4(0.0));
+#else
+        imageStore(u_depth, q, d);
+#endif
     }
+#ifdef PREPARE
     vec4 a;
     vec2 b;
     prepare_texel(c, d, a, b);
     imageStore(u_a, q, a);
     imageStore(u_b, q, vec4(b, 0.0, 0.0));
-#else
-    if (c.a <= 0.0) return;  // nothing drawn here (the depth sums are 0 too)
-    vec4 d = imageLoad(u_depth, q);
-    vec4 acc = imageLoad(u_acc, q);
-    float visible = (1.0 - acc.z) * c.a;  // under the layers in front
-    vec4 add = (1.0 - acc.a) * d;
-    add.z = visible;
-    imageStore(u_acc, q, acc + add);
-    imageStore(u_depth, q, vec4(d.xy, visible, d.w));
 #endif
 }
