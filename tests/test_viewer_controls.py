@@ -225,18 +225,23 @@ def test_click_to_focus_depth_on_the_cards(width):
     renderer.release()
 
 
-def test_frame_times_show_one_frame_and_its_own_splat():
-    """A long frame that splats, then short ones that keep the image: each status pairs a frame
-    with the splat drawn in it (the old status paired this frame's splat with the last frame's
-    length, and kept a splat time on frames that drew none)."""
+def test_frame_times_show_one_frame_and_its_own_pass():
+    """A long frame that draws, then short ones that keep the image: each status pairs a frame
+    with the pass drawn in it, named (the old status paired this frame's splat with the last
+    frame's length, kept a splat time on frames that drew none, and said 'splat 0.0 ms' beside a
+    frame of thin-lens refinement)."""
     from dofview.viewer.timing import FrameTimes
 
     times = FrameTimes()
     times.begin(10.0)
-    times.splatted(725.6)  # a slow splatting pass, within a frame of 0.75 s
+    times.rendered("depth layers", 725.6)  # a slow full frame, within a frame of 0.75 s
     times.begin(10.75)
-    assert (times.frame_ms, times.splat_ms) == pytest.approx((750.0, 725.6))
-    times.begin(10.78)  # a frame that kept the image
-    assert (times.frame_ms, times.splat_ms) == pytest.approx((30.0, 0.0))
-    assert times.status(12.0) == "frame 30.0 ms (splat 0.0 ms)  last sort 12.0 ms"
-    assert list(times.periods) == pytest.approx([750.0, 30.0])
+    assert (times.frame_ms, times.render_kind, times.render_ms) == pytest.approx((750.0, "depth layers", 725.6))
+    assert times.status(12.0) == "frame 750.0 ms (depth layers 725.6 ms)\nlast sort 12.0 ms"
+    times.rendered("thin-lens refinement", 1290.3)
+    times.begin(12.1)
+    assert times.status(12.0) == "frame 1350.0 ms (thin-lens refinement 1290.3 ms)\nlast sort 12.0 ms"
+    times.begin(12.13)  # a frame that kept the image
+    assert (times.frame_ms, times.render_kind, times.render_ms) == pytest.approx((30.0, "", 0.0))
+    assert times.status(12.0) == "frame 30.0 ms (image kept)\nlast sort 12.0 ms"
+    assert list(times.periods) == pytest.approx([750.0, 1350.0, 30.0])

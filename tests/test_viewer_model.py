@@ -103,17 +103,24 @@ def test_still_view_refines_the_thin_lens_in_complete_stages():
         fresh.release()
         shown = [model.progressive.samples]
         frames = [model.renderer.read()]
+        assert model.last_pass[0] == "depth layers" and model.last_pass[1] > 0  # the single pass
+        passes = [model.passes]
         while model.progressive.samples < 8:
             model.update(time.perf_counter())
             shown.append(model.progressive.samples)
             frames.append(model.renderer.read())
+            passes.append(model.passes)
+            # each still frame drew a refinement pass, which the status names and times
+            assert model.last_pass[0] == "thin-lens refinement" and model.last_pass[1] > 0
         assert shown == [1, 2] + [2] * 3 + [4] + [4] * 7 + [8]  # 2 + 4 + 8 passes after the single one
+        assert np.array_equal(np.diff(passes), np.ones(len(passes) - 1))
         for n, frame in zip(shown, frames):
             assert np.array_equal(frame.rgba, expected[n].rgba) and np.array_equal(frame.depth, expected[n].depth)
         assert not model.renderer.targets_encoded and not frames[-1].encoded  # stages average linear light
         assert model.renderer.lens == model.lens()  # the focus aid reads the shown lens, not a pass's
         model.update(time.perf_counter())
         assert model.progressive.samples == 8  # lens_samples_max reached: no more passes
+        assert model.passes == passes[-1]  # the image kept: no pass drawn
     finally:
         model.close()
 

@@ -36,6 +36,8 @@ class ViewerLens(ViewerViews):
         self.start_blur: BlurSpec | None = None  # --blur: resolved again on each view's own depths
         self._drawn_key: tuple | None = None  # what the targets hold (the model's frames)
         self._pinhole_view: tuple | None = None  # the view whose pinhole frame was timed last
+        self.passes = 0  # passes drawn into the targets, of any kind
+        self.last_pass = ("", 0.0)  # the last of them: what it drew, and its ms (to ctx.finish)
 
     def _loaded(self) -> None:
         self.start_focus = self.start_aperture = self.start_blur = None  # the command line's lens was for the first scene's scale
@@ -111,9 +113,14 @@ class ViewerLens(ViewerViews):
         t0 = time.perf_counter()
         self.renderer.draw(camera, Lens(1.0, 0.0), self.settings.render)
         self.ctx.finish()
-        self.interaction.record_pinhole((time.perf_counter() - t0) * 1e3, time.perf_counter())
+        self._drew("pinhole, timed", (time.perf_counter() - t0) * 1e3)
+        self.interaction.record_pinhole(self.last_pass[1], time.perf_counter())
         self._pinhole_view = self._view_of(camera)
         self._drawn_key = None  # the targets now hold the pinhole pass
+
+    def _drew(self, kind: str, ms: float) -> None:
+        self.passes += 1
+        self.last_pass = (kind, ms)
 
     def _view_of(self, camera: Camera) -> tuple:
         """What a pinhole frame's cost depends on: the view, the image size and the Gaussians drawn."""

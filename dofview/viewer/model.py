@@ -56,7 +56,6 @@ class ViewerModel(ViewerLens):
         super().__init__(ctx, image_size, settings, cameras, raster, budget, lod)
         self.tone = ToneAdaptation()
         self.progressive: ProgressiveLens | None = None
-        self.render_ms = 0.0
         self.splat_draws = 0  # splatting passes shown (exposure, gamma, background, focus aid add none)
         self.preview: Preview | None = None  # how the image shown was drawn (None: not drawn yet)
         self._last_count = -math.inf
@@ -152,9 +151,12 @@ class ViewerModel(ViewerLens):
             # still: one more pass of the next stage, the last complete stage staying on screen;
             # the first refinement (2 passes) is drawn whole, so the second still frame shows it
             stage = next_stage(self.progressive.samples, self.settings.lens_samples_max)
+            t0 = time.perf_counter()
             while self.progressive.add(camera, lens, self.settings.render, stage) != stage and stage == 2:
                 pass
             self.progressive.show()
+            self.ctx.finish()
+            self._drew("thin-lens refinement", (time.perf_counter() - t0) * 1e3)
             drawn = False  # the targets now hold the refined image
         return drawn
 
@@ -165,10 +167,11 @@ class ViewerModel(ViewerLens):
         self.renderer.draw(*preview.view(camera, lens, self.settings.render), count=count)
         self.ctx.finish()
         self.splat_draws += 1
-        self.render_ms = (time.perf_counter() - t0) * 1e3
-        self.interaction.record(preview, self.render_ms)
+        ms = (time.perf_counter() - t0) * 1e3
+        self._drew(str(preview), ms)
+        self.interaction.record(preview, ms)
         if lens.aperture == 0 and preview.scale == 1:  # a pinhole frame: the budget's own measure
-            self.interaction.record_pinhole(self.render_ms, now)
+            self.interaction.record_pinhole(ms, now)
         if count:
             self._last_count = now
         self.preview = preview

@@ -109,10 +109,10 @@ class Viewer:
         self._title()
         self.window.begin_frame()
         self.handle_input(self)
-        draws = self.model.splat_draws
+        passes = self.model.passes
         self._show(now)
-        if self.model.splat_draws != draws:
-            self.times.splatted(self.model.render_ms)
+        if self.model.passes != passes:
+            self.times.rendered(*self.model.last_pass)
         draw_ui(self)
         self.window.end_frame()
         fw, fh = self.window.framebuffer_size
@@ -126,7 +126,8 @@ class Viewer:
         """The model's state and the window's as plain data (the script's ``report`` action)."""
         return {
             **self.model.report(), "show_help": self.show_help, "fly_mode": self.fly_mode, "frames": self.frames,
-            "times": {"frame_ms": self.times.frame_ms, "splat_ms": self.times.splat_ms,
+            "times": {"frame_ms": self.times.frame_ms, "render_ms": self.times.render_ms,
+                      "render": self.times.render_kind,
                       "status": self.times.status(self.model.renderer.stats.sort_ms),
                       "history_ms": [round(t, 1) for t in self.times.periods]},
             "clipboard": self.window.clipboard(),
