@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_matches_sliced_reference
 
 from dofview.bench.metrics import psnr
 from dofview.bench.primitives import Parts, add_panel
@@ -124,6 +125,32 @@ def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
     ref = render_reference_sliced(scene, cam, lens, SLICED)
     assert psnr(gl.rgba, ref.rgba) >= MIN_PSNR
 
+
+
+@pytest.mark.parametrize("backend", ["quad", "compute"])
+def test_a_back_layer_drawn_per_splat_after_layers_that_drew_nothing(backend):
+    """A front and a back layer drawn per splat (floaters at the lens, a far backdrop) with the one
+    layer between them beyond the frame's reach, so it draws nothing: the back layer is prepared
+    for its own span of the order (the compute backend refused the range the front's left,
+    'range [41, 81) is outside the prepared span (0, 40)', found by random frames against the
+    twin), and the frame is the twin's."""
+    rng = np.random.default_rng(1)
+    front = np.c_[rng.uniform(-0.1, 0.1, (40, 2)), rng.uniform(0.15, 0.3, 40)]
+    back = np.c_[rng.uniform(-40, 40, (40, 2)), rng.uniform(60, 100, 40)]
+    means = np.r_[front, [[3.0, 0.0, 2.0]], back]  # the one between: 56° off axis, beyond the 30° frame
+    scales = np.r_[np.full((40, 3), 0.01), np.full((1, 3), 0.02), np.full((40, 3), 5.0)]
+    scene = GaussianScene(means=means, quats=np.tile([1.0, 0, 0, 0], (81, 1)), scales=scales,
+                          opacities=np.full(81, 0.8), sh_dc=rng.normal(size=(81, 3)))
+    cam, lens = look_at([0, 0, 0], [0, 0, 5], 64, 48, 60), Lens(2.0, 400.0)
+    r = get_backend(backend, scene)
+    try:
+        gl = r.render(cam, lens, SLICED)
+        assert [(l.first, l.end, l.lensed) for l in r.sliced_layers] == [(0, 40, True), (40, 41, False), (41, 81, True)]
+    finally:
+        r.release()
+    ref = render_reference_sliced(scene, cam, lens, SLICED)
+    assert ref.alpha.mean() > 0.05 and (ref.depth > 0).all()  # the backdrop, spread thin by its blur
+    assert_matches_sliced_reference(gl, ref)
 
 @pytest.mark.parametrize("scale", [2, 4, 8, 32])
 def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):

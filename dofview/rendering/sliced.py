@@ -370,9 +370,11 @@ class SlicedDof:
             if box[2] <= box[0] or box[3] <= box[1]:
                 continue  # nothing of it within its reach of the frame: it adds nothing (but ends a run)
             setup = lensed if layer.lensed else pinhole
-            if setup is not prepared:
+            # a run's own span: the front and back lensed runs share a setup, and the pinhole run
+            # between them may have drawn nothing (every window empty), which left the front's span
+            if prepared != (setup, spans[index]):
                 r.prepare_splats(camera, *setup, span=spans[index])
-                prepared = setup
+                prepared = (setup, spans[index])
                 self._lap("prepare splats")
             s = layer.scale  # GL rows, from the bottom, widened to whole blocks of the layer's level
             gl_box = (box[0] // s * s, (h - box[3]) // s * s, min(-(-box[2] // s) * s, w), min(-(-(h - box[1]) // s) * s, h))
