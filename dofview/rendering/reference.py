@@ -288,10 +288,13 @@ def _sliced_layers(scene: GaussianScene, camera: Camera, lens: Lens, settings: R
         return None
     plan, guard = frame.layers, frame.guard
     guarded = camera.guarded(guard)
+    # the huge-CoC layers are blurred per splat by the cell's share of the aperture, as the GL path
+    # draws them (a refinement pass's cell sees that share of the lens)
+    lensed = Lens(lens.focus, lens.aperture * math.sqrt(cell.share))
     layers = []
     for layer, (x0, y0, x1, y1) in zip(plan, frame.windows):
         sub = scene.subset(order[layer.first:layer.end])
-        blend, sums, _ = _blend(sub, guarded, lens if layer.lensed else Lens(lens.focus, 0.0), per_splat, tile)
+        blend, sums, _ = _blend(sub, guarded, lensed if layer.lensed else Lens(lens.focus, 0.0), per_splat, tile)
         outside = np.ones(blend.shape[:2], bool)
         outside[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = False
         blend[outside] = 0.0
