@@ -265,6 +265,7 @@ def cameras(tmp_path) -> Path:
     (["--view", "7"], ["cameras.json: view index 7 out of range (0…1)"]),
     (["--fnumber", "2", "--focal-mm", "50", "--focus", "0.05"], ["focus distance 0.05 must be beyond the focal length"]),
     (["--width", "100000"], ["100000×16 exceeds this OpenGL's limit"]),
+    (["--up", "-z"], ["argument --up: expected one argument (one that starts with '-' is written --up=-…)"]),
 ])
 def test_invalid_cli_values(tmp_path, capsys, good_ply, cameras, argv, needles):
     """argparse-style errors: one line, exit 2, nothing written."""

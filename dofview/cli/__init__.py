@@ -30,6 +30,9 @@ class _Parser(argparse.ArgumentParser):
         self._negative_number_matcher = re.compile(r"-\.?\d")
 
     def error(self, message: str):
+        missing = re.fullmatch(r"argument (?:\S+/)?(--\S+): expected one argument", message)
+        if missing:  # `--up -z`: argparse took the value for an option
+            message += f" (one that starts with '-' is written {missing.group(1)}=-…)"
         self.exit(2, f"dofview: error: {message} (see '{self.prog} --help')\n")
 
 
