@@ -92,3 +92,18 @@ def test_random_sliced_frames_match_the_twin(backend, seed):
         assert _tidy(image) and np.isfinite(image.rgba).all()
         assert psnr(image.flatten(), gl.rgba, peak) >= 50.0
         assert psnr(image.flatten(), render_reference_sliced_deep(scene, cam, lens, settings).flatten(), peak) >= 45.0
+
+
+if __name__ == "__main__":  # a longer search: python tests/test_random_frames.py FIRST END
+    import sys
+
+    failed = 0
+    for seed in range(int(sys.argv[1]), int(sys.argv[2])):
+        for backend in ("quad", "compute"):
+            try:
+                test_random_sliced_frames_match_the_twin(backend, seed)
+            except AssertionError as e:
+                failed += 1
+                print(f"seed {seed} {backend}: {str(e).splitlines()[0] if str(e) else 'assertion failed'}", flush=True)
+    print(f"seeds {sys.argv[1]}–{int(sys.argv[2]) - 1}: {failed} failed")
+    sys.exit(1 if failed else 0)
