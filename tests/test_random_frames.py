@@ -1,9 +1,10 @@
 """Random sliced frames against the twin: small random scenes (clouds, clouds with Gaussians at the
-lens and far behind, large Gaussians, flat ones), views, image sizes, lenses, blades and τ, drawn
-by both backends as the whole lens or as one lens cell of a refinement stage, some as deep images,
-each against rendering.reference (float64). A run of such frames found two bugs the hand-made
-cases missed (a back layer prepared for the front's span of the order; the twin's lens cells); the
-seeds below include theirs.
+lens and far behind, large Gaussians, flat ones; half of them in linear light with a few bright
+sources, which the sliced mode draws as highlight sprites), views, image sizes, lenses, blades and
+τ, drawn by both backends as the whole lens or as one lens cell of a refinement stage, some as
+deep images, each against rendering.reference (float64). A search over such frames found three
+bugs the hand-made cases missed (a back layer prepared for the front's span of the order, the
+twin's lens cells, the compute backend's faint coverage); the seeds below include theirs.
 
 Tolerances: the linear image at 45 dB (peak max(1, brightest)), the depth within 1e-3 relative on
 99 % of the pixels the twin covers (the compute backend stops a pixel at T < 1e-4 as the reference
@@ -26,6 +27,7 @@ from dofview.lens import Lens
 from dofview.rendering import get_backend
 from dofview.rendering.progressive import lens_cells
 from dofview.rendering.reference import render_reference_sliced, render_reference_sliced_deep
+from dofview.scene import SH_C0
 
 # 135: three layers, the middle one beyond the frame's reach; 5141: a lens cell with a front layer
 # drawn per splat; 1133: faint coverage on the compute backend; then seeds 0–59
@@ -57,7 +59,16 @@ def random_frame(seed: int):
         cell = cells[int(rng.integers(0, len(cells)))]
         u, v = cell.point * 0.5 * lens.diameter(cam.fx)
         cam = cam.lens_shifted(float(u), float(v), lens.focus)
-    return scene, cam, lens, settings, cell, cell is None and rng.random() < 0.3
+    deep = cell is None and rng.random() < 0.3
+    light = np.random.default_rng(seed + 1_000_003)  # drawn apart, so that the shapes above keep their seeds
+    if light.random() < 0.5:  # linear light with a few small sources of 10–1e4 (highlight sprites)
+        scene.colour_space = "linear"
+        k = max(1, n // 20)
+        radiance = np.exp(light.uniform(math.log(10.0), math.log(1e4), (k, 1))) * light.uniform(0.3, 1.0, (k, 3))
+        scene.sh_dc[:k] = (radiance - 0.5) / SH_C0
+        scene.scales[:k] *= light.uniform(0.05, 0.5, (k, 1))
+        scene.opacities[:k] = light.uniform(0.5, 1.0, k)
+    return scene, cam, lens, settings, cell, deep
 
 
 def _tidy(image) -> bool:
