@@ -134,3 +134,60 @@ def test_the_window_streams_a_set_and_opens_another(display, tmp_path):  # noqa:
         assert 0 in levels and 1 in levels and r[n]["count"] <= 16_000 and r[n]["error"] == ""
     assert r["moved"]["lod"]["levels"] != r["open"]["lod"]["levels"] and r["moved"]["lod"]["swaps"] >= 1
     assert r["other"]["count"] == 3200 and r["other"]["lod"]["levels"] == [0] * 4 and r["other"]["error"] == ""
+
+
+@pytest.mark.parametrize("raster, seed", [("quad", 1), ("compute", 2)])
+def test_a_random_walk_keeps_the_stream_and_the_frames_sound(raster, seed, tmp_path):
+    """40 frames of random actions as mouse, keys and panel make them (orbit, pan, zoom, look,
+    focus, aperture, blades, blur method, τ, click-to-focus, save, rest), the stream swapping
+    leaves as the camera goes: every frame finite and within the budget, no error from the model or
+    its stream; settled at the end, the frame is what a fresh renderer of its Gaussians draws."""
+    import math
+    import random
+    from dataclasses import replace
+
+    budget = 16_000
+    model = open_lod_model(budget, raster)
+    rnd = random.Random(seed)
+    try:
+        for step in range(40):
+            action = rnd.choice(["orbit", "orbit", "pan", "zoom", "look", "focus", "aperture", "blades", "dof",
+                                 "tau", "click", "save", "rest"])
+            if action == "orbit":
+                model.controls.orbit(rnd.uniform(-300, 300), rnd.uniform(-40, 40))
+            elif action == "pan":
+                model.controls.pan(rnd.uniform(-40, 40), rnd.uniform(-40, 40), model.camera().fx)
+            elif action == "zoom":
+                model.controls.zoom(rnd.choice([-3, -1, 1, 3]))
+            elif action == "look":
+                model.controls.look(rnd.uniform(-50, 50), rnd.uniform(-20, 20))
+            elif action == "focus":
+                model.set_focus(math.exp(rnd.uniform(math.log(0.5), math.log(50.0))))
+            elif action == "aperture":
+                model.settings.aperture = rnd.choice([0.0, 5.0, 50.0, 300.0])
+            elif action == "blades":
+                model.settings.render = replace(model.settings.render, blades=rnd.choice([0, 5, 6]))
+            elif action == "dof":
+                model.settings.render = replace(model.settings.render, dof=rnd.choice(["sliced", "splat"]))
+            elif action == "tau":
+                model.with_render(tau=rnd.choice([0.0, 1 / 255, 0.02]))
+            elif action == "click":
+                model.focus_at(rnd.uniform(0, SIZE[0] - 1), rnd.uniform(0, SIZE[1] - 1))
+            elif action == "save":
+                model.save(tmp_path / f"step{step}.exr", png=rnd.random() < 0.5)
+                assert (tmp_path / f"step{step}.exr").is_file()
+            else:
+                time.sleep(0.15)  # the view rests: the full frame follows the previews
+            model.update(time.perf_counter())
+            frame = model.renderer.read()
+            assert np.isfinite(frame.rgba).all() and np.isfinite(frame.depth).all(), (step, action)
+            assert model.scene.count <= budget and not model.error and model.stream.error is None, (step, action)
+        settle_stream(model)
+        assert model.stream.swaps >= 1
+        fresh = get_backend(raster, model.scene)
+        cam = model.camera()
+        want = fresh.render(cam, model.lens(cam), model.settings.render)
+        fresh.release()
+        assert np.array_equal(model.renderer.read().rgba, want.rgba)
+    finally:
+        model.close()
