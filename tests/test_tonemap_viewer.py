@@ -110,3 +110,33 @@ def test_scenes_open_with_their_colour_spaces_operator(display, tmp_path):  # no
     cards, lamp = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("cards", "lamp"))
     assert cards["colour_space"] == "srgb" and cards["tonemap"]["operator"] == "clip"
     assert lamp["colour_space"] == "linear" and lamp["tonemap"]["operator"] == LINEAR_DEFAULT
+
+
+def test_statistics_as_numpy_numbers_reach_the_display_pass():
+    """The viewer's smoothed statistics are numpy numbers, and reinhard05's test of them, "the
+    frame fits under white", a numpy bool, which moderngl cannot pack into a bool uniform: the
+    viewer stopped with a traceback on the lamp sample at +3 EV (found by random viewer scripts).
+    The display pass takes them, and shows what it shows with the same statistics as floats."""
+    from dataclasses import fields, replace
+
+    from dofview.camera import look_at
+    from dofview.io import load_scene
+    from dofview.lens import Lens
+    from dofview.rendering.quad import QuadBackend
+    from dofview.tonemap import Tonemap
+    from dofview.tonemap.reinhard05 import Reinhard05
+
+    scene = load_scene(LAMP_PLY, progress=False)
+    renderer = QuadBackend(scene)
+    try:
+        renderer.render(look_at([0, 0, -4], [0, 0, 0], 64, 48, 60), Lens(4.0, 0.0))
+        operator = Reinhard05()
+        stats = renderer.frame_stats(operator)
+        numpy_stats = replace(stats, **{f.name: np.float64(getattr(stats, f.name)) for f in fields(stats)
+                                        if isinstance(getattr(stats, f.name), float)})
+        tm = Tonemap(exposure=3.0, operator=operator)
+        assert isinstance(operator.uniforms(numpy_stats, tm.multiplier)["u_identity"], np.bool_)
+        shown = renderer.display_image(tm, stats=numpy_stats)
+        assert np.array_equal(shown, renderer.display_image(tm, stats=stats)) and shown.any()
+    finally:
+        renderer.release()

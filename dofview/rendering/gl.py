@@ -91,4 +91,6 @@ def set_uniforms(program: moderngl.Program, values: dict[str, object]) -> None:
     for name, value in values.items():
         member = program.get(name, None)  # (`name in program` walks every member)
         if member is not None:
+            if isinstance(value, np.generic):  # moderngl packs Python numbers: a numpy bool is none
+                value = value.item()
             member.value = value
