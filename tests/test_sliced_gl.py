@@ -126,7 +126,6 @@ def test_huge_coc_layers_drawn_per_splat_match_the_cpu_reference(backend):
     assert psnr(gl.rgba, ref.rgba) >= MIN_PSNR
 
 
-
 def _floaters_and_backdrop() -> GaussianScene:
     """40 floaters at the lens and a far backdrop of 40, both blurred beyond the frame by
     Lens(2, 400) at 64 × 48 (front and back layers drawn per splat), and one Gaussian between them
@@ -158,6 +157,7 @@ def test_a_back_layer_drawn_per_splat_after_layers_that_drew_nothing(backend):
     ref = render_reference_sliced(scene, cam, lens, SLICED)
     assert ref.alpha.mean() > 0.05 and (ref.depth > 0).all()  # the backdrop, spread thin by its blur
     assert_matches_sliced_reference(gl, ref)
+
 
 @pytest.mark.parametrize("scale", [2, 4, 8, 32])
 def test_reduction_to_a_level_is_the_twins_chain_of_2x2_averages(scale):
@@ -576,9 +576,9 @@ def test_a_lens_cell_pass_and_the_whole_lens():
 @pytest.mark.parametrize("backend", ["quad", "compute"])
 def test_a_lens_cell_pass_blurs_the_huge_coc_layers_by_its_share_of_the_lens(backend):
     """A refinement pass whose plan has a front layer drawn per splat (a cloud at the lens before a
-    backdrop): it is blurred by the cell's share of the aperture in the GL path and
-    in the twin alike (the twin blurred it by the whole lens: 37.8 dB here, and 41.5 dB with 1 %
-    of the depth within 1e-3 on the random frame where random lens-cell frames found it)."""
+    backdrop): it is blurred by the cell's share of the aperture in the GL path and in the twin
+    alike (the twin blurred it by the whole lens: 37.8 dB here, and 41.5 dB with 1 % of the depth
+    within 1e-3 on the random frame where random lens-cell frames found it)."""
     rng = np.random.default_rng(1)
     means = np.r_[np.c_[rng.uniform(-0.12, 0.12, (200, 2)), rng.uniform(0.2, 0.3, 200)],  # at the lens
                   np.c_[rng.uniform(-4, 4, (300, 2)), rng.uniform(6, 8, 300)]]
