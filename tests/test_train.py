@@ -1,6 +1,7 @@
 """The optional trainer (dofview/train): forward model vs the GL renderer, datasets, HDR training."""
 
 import json
+import re
 import sys
 
 import numpy as np
@@ -15,6 +16,7 @@ from dofview.errors import DofviewError  # noqa: E402
 from dofview.frame import RenderSettings  # noqa: E402
 from dofview.io import load_scene  # noqa: E402
 from dofview.io.exr import read_exr  # noqa: E402
+from dofview.io.ply import write_ply  # noqa: E402
 from dofview.io.png import read_png, write_png  # noqa: E402
 from dofview.lens import Lens  # noqa: E402
 from dofview.cli import main  # noqa: E402
@@ -141,6 +143,46 @@ def test_train_without_torch_is_a_one_line_error(small_dataset, tmp_path, monkey
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "pip install 'dofview[train]'" in err
     assert not (tmp_path / "x.ply").exists()
+
+
+@pytest.mark.parametrize("outputs, message", [
+    (["-o", "{file}/x.ply"], r"x\.ply: .*is a file, not a folder"),
+    (["-o", "{tmp}/x.ply", "--log", "{file}/log.json"], r"log\.json: .*is a file, not a folder"),
+    (["-o", "{tmp}/x.ply", "--checkpoint", "{tmp}"], r": is a folder, not a file name"),
+    (["-o", "{tmp}/x.ply", "--plot", "{tmp}/history.jpg"], r"--plot must name a \.png file"),
+    (["-o", "{tmp}/x.ply", "--checkpoint", "{tmp}/x.ply"], r"--checkpoint must name another file than -o"),
+    (["-o", "{tmp}/x.ply", "--log", "{tmp}/x.ckpt"], r"--log must name another file than --checkpoint"),
+])
+def test_train_refuses_an_output_it_could_not_write_before_any_step(small_dataset, tmp_path, monkeypatch, capsys,
+                                                                    outputs, message):
+    """A training run must not end, minutes or hours later, in a refusal to write its model."""
+    from dofview.train.optimise import Trainer
+
+    monkeypatch.setattr(Trainer, "run", lambda *a, **k: pytest.fail("trained before the outputs were checked"))
+    (tmp_path / "afile").write_text("")
+    args = [a.format(file=tmp_path / "afile", tmp=tmp_path) for a in outputs]
+    assert main(["train", str(small_dataset), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and re.search(message, err), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_train_makes_the_folders_of_its_outputs(small_dataset, tmp_path):
+    ply, log = tmp_path / "new" / "model" / "x.ply", tmp_path / "logs" / "log.json"
+    assert main(["train", str(small_dataset), "-o", str(ply), "--iterations", "2", "--warmup", "1",
+                 "--gaussians", "20", "--log", str(log)]) == 0
+    assert load_scene(ply, progress=False).count > 0 and json.loads(log.read_text())["history"]
+
+
+def test_train_eval_refuses_an_unwritable_json_before_evaluating(small_dataset, tmp_path, monkeypatch, capsys):
+    import dofview.train.evaluate
+
+    monkeypatch.setattr(dofview.train.evaluate, "evaluate", lambda *a, **k: pytest.fail("evaluated first"))
+    (tmp_path / "afile").write_text("")
+    scene = tmp_path / "s.ply"
+    write_ply(random_scene(20, seed=1), scene)
+    assert main(["train-eval", str(small_dataset), str(scene), "--json", str(tmp_path / "afile" / "s.json")]) == 2
+    assert "afile is a file, not a folder" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")

@@ -70,6 +70,20 @@ def test_open_focus_aperture_save(tmp_path, raster):
         model.close()
 
 
+def test_save_makes_a_new_folder_and_refuses_a_path_under_a_file(tmp_path):
+    model = open_model("quad", lens_samples_max=0)
+    try:
+        settle(model)
+        (tmp_path / "afile").write_text("")
+        model.save(tmp_path / "afile" / "view.exr", png=True)
+        assert "afile is a file, not a folder" in model.error and not model.message
+        model.save(tmp_path / "shots" / "a" / "view.exr", png=True)
+        assert model.error == "" and model.message.startswith("saved")
+        assert sorted(p.name for p in (tmp_path / "shots" / "a").iterdir()) == ["view.exr", "view.png"]
+    finally:
+        model.close()
+
+
 def test_moving_view_sorts_in_the_background_then_draws_the_current_order():
     model = open_model("quad", lens_samples_max=0)
     try:

@@ -13,7 +13,7 @@ from dofview.camera import Camera
 from dofview.deep import DeepSettings
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
-from dofview.io.atomic import check_writable, make_folder
+from dofview.io.atomic import check_output_file, make_folder
 from dofview.io.cameras import load_cameras_json
 from dofview.lens import LensRequest
 from dofview.rendering import Renderer
@@ -179,9 +179,7 @@ def check_outputs(args: argparse.Namespace) -> None:
     if args.video is not None:
         check_video(args.video)
     for given, target in _output_files(args):
-        check_writable(target, shown=given)
-        if target.is_dir():
-            raise DofviewError(f"{given}: is a folder, not a file name")
+        check_output_file(target, shown=given)
 
 
 def _output_files(args: argparse.Namespace) -> list[tuple[Path, Path]]:

@@ -62,6 +62,17 @@ def check_writable(path: str | Path, shown: str | Path | None = None) -> None:
     _new_file(existing, path, ".probe", shown).unlink()
 
 
+def check_output_file(path: str | Path, shown: str | Path | None = None) -> None:
+    """:func:`check_writable`, and that ``path`` does not name a folder.
+
+    Raises:
+        DofviewError: as :func:`check_writable`, or ``path`` is a folder.
+    """
+    check_writable(path, shown)
+    if Path(path).is_dir():
+        raise DofviewError(f"{path if shown is None else shown}: is a folder, not a file name")
+
+
 def _new_file(folder: Path, path: Path, suffix: str, shown: str | Path) -> Path:
     """A new empty hidden file in ``folder`` named after ``path``; a DofviewError naming ``shown``
     when the folder refuses it."""

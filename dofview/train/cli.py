@@ -112,24 +112,23 @@ def _torch() -> None:
 
 def run_train(args: argparse.Namespace) -> int:
     _torch()
-    from dofview.io.atomic import atomic_output
+    from dofview.io.atomic import atomic_output, make_folder
     from dofview.io.ply import write_ply
     from dofview.train.dataset import load_dataset
     from dofview.train.optimise import TrainConfig, Trainer
 
-    if args.output.suffix.lower() != ".ply":
-        raise DofviewError(f"{args.output}: output must be a .ply file")
-    if args.plot:  # before the training, not after it
-        require_extra("matplotlib", "bench", f"--plot {args.plot}")
+    ckpt = args.checkpoint or args.output.with_suffix(".ckpt")
+    outputs = _check_train_outputs(args, ckpt)
+    if args.resume and not ckpt.is_file():
+        raise DofviewError(f"{ckpt}: no checkpoint to resume from")
     dataset = load_dataset(args.dataset)
     config = TrainConfig(iterations=args.iterations, warmup=min(args.warmup, args.iterations), initial=args.gaussians,
                          max_gaussians=args.max_gaussians, variant=args.variant, seed=args.seed,
                          sh_degree=args.sh_degree)
     trainer = Trainer(dataset, config, args.device, args.torch_raster)
-    ckpt = args.checkpoint or args.output.with_suffix(".ckpt")
+    for path in outputs:
+        make_folder(path)
     if args.resume:
-        if not ckpt.is_file():
-            raise DofviewError(f"{ckpt}: no checkpoint to resume from")
         trainer.load_checkpoint(ckpt)
     trainer.run(progress=True, checkpoint=ckpt, checkpoint_every=args.checkpoint_every)
     linear = args.variant != "ldr"
@@ -151,6 +150,29 @@ def run_train(args: argparse.Namespace) -> int:
           f"{trainer.step} steps on {trainer.device} ({trainer.raster} rasteriser); count over time {counts}"
           f"{held_out}", file=sys.stderr)
     return 0
+
+
+def _check_train_outputs(args: argparse.Namespace, ckpt: Path) -> list[Path]:
+    """Every file training writes, checked before any step is taken (a run of minutes or hours
+    must not end in a refusal to write its model); returns them, for their folders to be made
+    once the dataset has loaded."""
+    from dofview.io.atomic import check_output_file
+
+    if args.output.suffix.lower() != ".ply":
+        raise DofviewError(f"{args.output}: output must be a .ply file")
+    if args.plot is not None:
+        if args.plot.suffix.lower() != ".png":
+            raise DofviewError(f"{args.plot}: --plot must name a .png file")
+        require_extra("matplotlib", "bench", f"--plot {args.plot}")
+    named = {"-o": args.output, "--checkpoint": ckpt, "--log": args.log, "--plot": args.plot}
+    files = {option: path for option, path in named.items() if path is not None}
+    taken: dict[Path, str] = {}
+    for option, path in files.items():
+        check_output_file(path)
+        if path.resolve() in taken:
+            raise DofviewError(f"{path}: {option} must name another file than {taken[path.resolve()]}")
+        taken[path.resolve()] = option
+    return list(files.values())
 
 
 def run_make_dataset(args: argparse.Namespace) -> int:
@@ -186,11 +208,15 @@ def blur_summary(doc: dict) -> str:
 
 def run_eval(args: argparse.Namespace) -> int:
     from dofview.io import load_scene
-    from dofview.io.atomic import atomic_output
+    from dofview.io.atomic import atomic_output, check_output_file, make_folder
     from dofview.train.dataset import load_dataset
     from dofview.train.evaluate import evaluate
 
+    if args.json is not None:  # before the scenes are rendered, not after
+        check_output_file(args.json)
     dataset = load_dataset(args.dataset)
+    if args.json is not None:
+        make_folder(args.json)
     rows = []
     print("| scene | colour space | log-radiance PSNR (dB) | bright-region radiance ratio |")
     print("|---|---|---|---|")

@@ -28,6 +28,7 @@ from dofview.api import save_render
 from dofview.camera import Camera
 from dofview.errors import DofviewError
 from dofview.framing import UpGuess
+from dofview.io.atomic import check_output_file, make_folder
 from dofview.io.lod import DEFAULT_BUDGET, LodSet
 from dofview.lens import Lens
 from dofview.options import render_command_line
@@ -96,9 +97,14 @@ class ViewerModel(ViewerLens):
         try:
             if out.suffix.lower() != ".exr":
                 raise DofviewError(f"{out}: output must be an .exr file")
+            outputs = [out, out.with_suffix(".png")] if png else [out]
+            for target in outputs:
+                check_output_file(target)
+            for target in outputs:  # a new folder is made, as dofview render makes it
+                make_folder(target)
             camera = self.camera()
             save_render(self.renderer, camera, self.lens(camera), self.settings.tonemap(), self.settings.render,
-                        str(self.scene_path), out, out.with_suffix(".png") if png else None,
+                        str(self.scene_path), out, outputs[1] if png else None,
                         lens_info=self.settings.lens_request().to_dict(),
                         stats=self.tone.smoother.state if self.settings.tonemap().operator.adaptive else None)
         except DofviewError as e:
