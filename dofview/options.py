@@ -82,9 +82,12 @@ def focus_value(text: str) -> float | str:
 
 
 def up_value(text: str) -> str:
-    """An axis label such as -y, or a direction x,y,z (kept as text: :class:`UpGuess` reads it)."""
+    """An axis label such as -y (a bare y is +y), or a direction x,y,z (kept as text:
+    :class:`UpGuess` reads it)."""
     if text in UP_AXES:
         return text
+    if f"+{text}" in UP_AXES:
+        return f"+{text}"
     try:
         v = vec3(text)
     except argparse.ArgumentTypeError:
@@ -157,7 +160,7 @@ def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (8
     g.add_argument("--target", type=vec3, help="point looked at x,y,z (scene units)")
     g.add_argument("--fov", type=number(0, 180, lo_open=True, what="field of view"), help="horizontal field of view, degrees (default 50)")
     g.add_argument("--near", type=number(0, None, lo_open=True, what="near plane"), default=0.01, help="near plane, scene units (default 0.01)")
-    g.add_argument("--up", type=up_value, help=f"world up: {'|'.join(UP_AXES)} or a direction x,y,z "
+    g.add_argument("--up", type=up_value, help=f"world up: {'|'.join(UP_AXES)} (y is +y) or a direction x,y,z "
                                                "(default: guessed from the scene's ground; with cameras, theirs; with --eye/--target, -y)")
     p.add_argument("--raster", choices=RASTERS, default="auto",
                    help="renderer backend: quad (instanced quads, the reference), compute (tile rasteriser in "

@@ -3,6 +3,7 @@ guessed and said, and a focus found on every scene in tests/data."""
 
 from __future__ import annotations
 
+import argparse
 import json
 
 import numpy as np
@@ -17,6 +18,7 @@ from dofview.framing import UP_AXES, axis_vector, find_place, guess_up, overview
 from dofview.io import load_scene
 from dofview.io.exr import read_exr
 from dofview.lens import Lens
+from dofview.options import up_value
 from dofview.rendering.focus import auto_focus, depth_range
 from dofview.scene import GaussianScene, matrices_from_quats, quat_from_matrix
 
@@ -71,6 +73,12 @@ def test_up_option_overrides_the_guess(tmp_path, capsys):
     assert "guessed" not in capsys.readouterr().err
     cam = json.loads(read_exr(out)[1]["dofview:camera"])
     assert np.dot(-np.array(cam["R"])[1], [0, -1, 0]) > 0.9  # image-up within 25° of −y (the view looks down 20°)
+
+
+def test_a_bare_axis_is_its_positive_direction():
+    assert [up_value(t) for t in ("y", "z", "x", "+y", "-y")] == ["+y", "+z", "+x", "+y", "-y"]
+    with pytest.raises(argparse.ArgumentTypeError, match="up must be one of"):
+        up_value("w")
 
 
 @pytest.mark.parametrize("label", UP_AXES)
