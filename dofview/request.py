@@ -71,6 +71,7 @@ def open_scene(args: argparse.Namespace, progress: bool = True, cameras: Path | 
     elif run.root is not None:
         notes.append(run.describe())
     lod_set = open_lod(run.scene) if is_lod_set(run.scene) else None  # kept: the viewer streams from it
+    _check_format_options(args, run.scene, lod_set is not None)
     scene = load_scene(run.scene, progress=progress, spz_axes=getattr(args, "spz_axes", None),
                        lod=getattr(args, "lod", None), budget=getattr(args, "budget", None), lod_set=lod_set,
                        report=lambda line: print(line, file=sys.stderr))
@@ -78,6 +79,17 @@ def open_scene(args: argparse.Namespace, progress: bool = True, cameras: Path | 
         scene.colour_space = args.colour_space
     use = given if given is not None else found if found is not None else None if explicit else cameras
     return OpenedScene(scene, run.scene, use, notes, lod_set=lod_set)
+
+
+def _check_format_options(args: argparse.Namespace, path: Path, lod: bool) -> None:
+    """Refuse a reader's option given for a file that reader does not read: it would be dropped
+    without a word (a user who asks for ``--lod 2`` of a .ply expects a coarser scene)."""
+    for option, name in (("--lod", "lod"), ("--budget", "budget")):
+        if not lod and getattr(args, name, None) is not None:
+            raise DofviewError(f"{path}: {option} is for streamed LOD sets (lod-meta.json); "
+                               "this scene is not one")
+    if getattr(args, "spz_axes", None) is not None and path.suffix.lower() != ".spz":
+        raise DofviewError(f"{path}: --spz-axes is for .spz files")
 
 
 def camera_from_args(args: argparse.Namespace, opened: OpenedScene, default_size: tuple[int, int] = (800, 600),

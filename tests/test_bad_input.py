@@ -266,6 +266,12 @@ def cameras(tmp_path) -> Path:
     (["--fnumber", "2", "--focal-mm", "50", "--focus", "0.05"], ["focus distance 0.05 must be beyond the focal length"]),
     (["--width", "100000"], ["100000×16 exceeds this OpenGL's limit"]),
     (["--up", "-z"], ["argument --up: expected one argument (one that starts with '-' is written --up=-…)"]),
+    # a reader's option for a file it does not read, or a deep setting without --deep: dropped without a word before
+    (["--lod", "2"], ["good.ply: --lod is for streamed LOD sets (lod-meta.json); this scene is not one"]),
+    (["--budget", "3M"], ["good.ply: --budget is for streamed LOD sets"]),
+    (["--spz-axes", "rdf"], ["good.ply: --spz-axes is for .spz files"]),
+    (["--deep-cap", "4"], ["--deep-cap shapes the deep image: it needs --deep OUT.exr"]),
+    (["--deep-tolerance", "0.1"], ["--deep-tolerance shapes the deep image: it needs --deep OUT.exr"]),
 ])
 def test_invalid_cli_values(tmp_path, capsys, good_ply, cameras, argv, needles):
     """argparse-style errors: one line, exit 2, nothing written."""
@@ -279,6 +285,21 @@ def test_invalid_cli_values(tmp_path, capsys, good_ply, cameras, argv, needles):
                       *[v for kv in base.items() for v in kv], *argv)
     assert_one_line_error(rc, err, *needles)
     assert_nothing_written(out)
+
+
+@pytest.mark.parametrize("argv,needles", [
+    (["--views", "1", "--focus", "3", "--ks", "0.25"], ["--focus, --ks: not read with --views"]),
+    (["--views", "1", "--tau", "0.02", "--near", "0.5"], ["--tau, --near: not read with --views"]),
+    (["--views", "1", "--eye", "0,0,0", "--target", "0,0,5"], ["--eye, --target: not read with --views"]),
+    (["--coc-px", "4"], ["--coc-px: read only by the study of --views N"]),
+])
+def test_bench_refuses_options_its_mode_does_not_read(tmp_path, capsys, good_ply, argv, needles):
+    """The full bench and the study of --views read different options; one the mode would drop is
+    refused before anything is measured."""
+    out = tmp_path / "out"
+    rc, err = run_cli(capsys, "bench", good_ply, "--quick", "--no-plots", "--out", out, *argv)
+    assert_one_line_error(rc, err, *needles)
+    assert not out.exists()
 
 
 # ---- outputs ------------------------------------------------------------------------------------------

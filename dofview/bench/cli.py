@@ -117,11 +117,43 @@ def add_parser(sub) -> None:
     g = p.add_argument_group("real scenes without cameras (dofview.bench.study: against the physical thin lens)")
     g.add_argument("--views", type=_positive_int, help="instead of the full bench: N look-at views around the scene's "
                    "robust bounds, the issue-14 table (anchors, default, accumulation) and a speed-error plot")
-    g.add_argument("--focus-pct", type=_list_of(number(0, 100, what="percentile"), "percentiles"), default=(30.0, 70.0),
+    g.add_argument("--focus-pct", type=_list_of(number(0, 100, what="percentile"), "percentiles"), default=FOCUS_PCT,
                    help="with --views: focus at these percentiles of the pinhole depth (default 30,70)")
-    g.add_argument("--coc-px", type=_list_of(number(0, None, lo_open=True, what="CoC"), "radii"), default=(6.0, 16.0),
+    g.add_argument("--coc-px", type=_list_of(number(0, None, lo_open=True, what="CoC"), "radii"), default=COC_PX,
                    help="with --views: apertures whose largest CoC in view (5th-95th depth percentile) has these radii in px (default 6,16)")
     p.set_defaults(run=run)
+
+
+FOCUS_PCT, COC_PX = (30.0, 70.0), (6.0, 16.0)  # the study's defaults (--focus-pct, --coc-px)
+# options only the full bench reads: the study of --views makes its own views, lenses and settings
+_BENCH_ONLY = ("focus", "blur", "apertures", "grid_apertures", "taus", "ks", "norms", "acc_samples", "warmup",
+               "counts", "count_size", "widths", "no_scaling", "cameras", "eye", "target", "fov", "up")
+_BENCH_ONLY_DEFAULTS = {"tau": RenderSettings.tau, "k": RenderSettings.k, "opacity_norm": RenderSettings.opacity_norm,
+                        "near": 0.01}
+_STUDY_ONLY = {"focus_pct": FOCUS_PCT, "coc_px": COC_PX}
+
+
+def _check_mode_options(args: argparse.Namespace) -> None:
+    """Refuse an option the chosen mode would drop without a word (the full bench, or the study of
+    ``--views``)."""
+    def given(dest: str, default: object = None) -> bool:
+        value = getattr(args, dest)
+        return value is not None and value is not False and value != default
+
+    def option(dest: str) -> str:
+        return "--" + dest.replace("_", "-")
+
+    if args.views:
+        ignored = [option(d) for d in _BENCH_ONLY if given(d)]
+        ignored += [option(d) for d, default in _BENCH_ONLY_DEFAULTS.items() if given(d, default)]
+        if ignored:
+            raise DofviewError(f"{', '.join(ignored)}: not read with --views, whose study makes its own views, lenses "
+                               "and settings (it takes --focus-pct, --coc-px, --ref-samples, --frames, --exposure, "
+                               "the image size and --raster)")
+    else:
+        wrong = [option(d) for d, default in _STUDY_ONLY.items() if given(d, default)]
+        if wrong:
+            raise DofviewError(f"{', '.join(wrong)}: read only by the study of --views N")
 
 
 def _csv(values) -> str:
@@ -149,6 +181,7 @@ def run(args: argparse.Namespace) -> int:
     from dofview.bench.report import write_outputs
     if args.quick and args.width is None and args.height is None:
         args.bench_width = 96
+    _check_mode_options(args)
     cfg = config_from_args(args)
     base = RenderSettings(tau=args.tau, k=args.k, opacity_norm=args.opacity_norm, near=args.near)
     tm = Tonemap(exposure=args.exposure)

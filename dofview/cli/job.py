@@ -143,7 +143,11 @@ def job_from_args(args: argparse.Namespace) -> RenderJob:
 def deep_from_args(args: argparse.Namespace) -> DeepSettings:
     """``--deep-tolerance`` and ``--deep-cap`` as :class:`DeepSettings`; the deep image refuses
     ``--lens-samples`` (it is one pass) and an output that is ``-o``'s own file."""
-    deep = DeepSettings(args.deep_tolerance, args.deep_cap)
+    given = {name: value for name, value in (("tolerance", args.deep_tolerance), ("cap", args.deep_cap))
+             if value is not None}
+    if given and args.deep is None:
+        raise DofviewError(f"--deep-{next(iter(given))} shapes the deep image: it needs --deep OUT.exr")
+    deep = DeepSettings(**given)
     if args.deep is not None:
         if args.lens_samples:
             raise DofviewError("--deep cannot be refined with --lens-samples: the deep image is one pass")

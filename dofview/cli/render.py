@@ -41,11 +41,11 @@ def add_deep_args(p: argparse.ArgumentParser) -> None:
                         "B, A (linear, premultiplied), Z and ZBack (camera depth); flattened, it is the -o image. "
                         "With the sliced depth of field, the blurred layers are the samples; numbered like -o in a sequence")
     g.add_argument("--deep-tolerance", type=number(0, None, lo_open=True, what="--deep-tolerance"),
-                   default=DEFAULT_TOLERANCE, metavar="REL",
+                   metavar="REL",
                    help=f"merge a pixel's splats into one sample while their depth is within this fraction of the "
                         f"sample's front (default {DEFAULT_TOLERANCE:g})")
-    g.add_argument("--deep-cap", type=number(1, None, integer=True, what="--deep-cap"), default=DEFAULT_CAP,
-                   metavar="N", help=f"most samples per pixel; the last takes all behind it (default {DEFAULT_CAP})")
+    g.add_argument("--deep-cap", type=number(1, None, integer=True, what="--deep-cap"), metavar="N",
+                   help=f"most samples per pixel; the last takes all behind it (default {DEFAULT_CAP})")
 
 
 def run_render(args: argparse.Namespace) -> int:
