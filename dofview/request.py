@@ -108,12 +108,18 @@ def camera_from_args(args: argparse.Namespace, opened: OpenedScene, default_size
     if getattr(args, "focal_mm", None) and args.fov is None:
         physical_fov = math.degrees(2 * math.atan(args.sensor_mm / (2 * args.focal_mm)))
     if opened.cameras:
+        if getattr(args, "fov", None) is not None:
+            raise DofviewError(f"{opened.cameras}: its views have their own field of view; --fov is for views "
+                               "dofview makes (--eye/--target, or none)")
         view = args.view if view is None else view
         cam = select_camera(load_cameras_json(opened.cameras), view, str(opened.cameras))
         w = args.width or (round(cam.width * args.height / cam.height) if args.height else cam.width)
         h = args.height or (round(cam.height * args.width / cam.width) if args.width else cam.height)
         what = f"camera {cam.name or view!r} of {Path(opened.cameras).absolute()}"
         return _check_seen(args, opened, cam.resized(w, h), what)
+    if view is None and getattr(args, "view", "0") != "0":
+        raise DofviewError(f"--view picks a view of --cameras (or of a run folder's cameras.json); "
+                           f"{opened.path} has none")
     dw, dh = default_size
     w = args.width or (round(dw * args.height / dh) if args.height else dw)
     h = args.height or (round(dh * args.width / dw) if args.width else dh)

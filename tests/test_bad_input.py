@@ -272,10 +272,12 @@ def cameras(tmp_path) -> Path:
     (["--spz-axes", "rdf"], ["good.ply: --spz-axes is for .spz files"]),
     (["--deep-cap", "4"], ["--deep-cap shapes the deep image: it needs --deep OUT.exr"]),
     (["--deep-tolerance", "0.1"], ["--deep-tolerance shapes the deep image: it needs --deep OUT.exr"]),
+    (["--cameras", "{cameras}", "--fov", "20"], ["cameras.json: its views have their own field of view"]),
 ])
 def test_invalid_cli_values(tmp_path, capsys, good_ply, cameras, argv, needles):
     """argparse-style errors: one line, exit 2, nothing written."""
-    view = ["--cameras", cameras] if "--view" in argv else ["--eye", "0,0,0", "--target", "0,0,5"]
+    argv = [str(cameras) if a == "{cameras}" else a for a in argv]
+    view = [] if "--cameras" in argv else ["--cameras", cameras] if "--view" in argv else ["--eye", "0,0,0", "--target", "0,0,5"]
     out = tmp_path / "out"
     out.mkdir()
     base = {"--width": "24", "--height": "16", "--focus": "5"}
@@ -300,6 +302,15 @@ def test_bench_refuses_options_its_mode_does_not_read(tmp_path, capsys, good_ply
     rc, err = run_cli(capsys, "bench", good_ply, "--quick", "--no-plots", "--out", out, *argv)
     assert_one_line_error(rc, err, *needles)
     assert not out.exists()
+
+
+def test_a_view_index_without_cameras_is_refused(tmp_path, capsys, good_ply):
+    """--view of a scene without cameras (no --cameras, no run folder) used to frame the overview
+    anyway, the index dropped without a word."""
+    rc, err = run_cli(capsys, "render", good_ply, "-o", tmp_path / "x.exr", "--width", "24", "--height", "16",
+                      "--view", "3")
+    assert_one_line_error(rc, err, "--view picks a view of --cameras", "good.ply has none")
+    assert not (tmp_path / "x.exr").exists()
 
 
 # ---- outputs ------------------------------------------------------------------------------------------
