@@ -1,8 +1,9 @@
-"""Random `dofview render` command lines: each must render (exit 0, its EXR written) or fail in one
-line (`dofview: error: …`, exit 2, nothing written); a traceback, another exit status or an output
-left behind by a failed command is reported. docs/ROBUSTNESS.md, "Command lines".
+"""Random `dofview render` command lines, or with --bench `dofview bench --quick` ones: each must
+run (exit 0, its EXR or its report written) or fail in one line (`dofview: error: …`, exit 2,
+nothing written); a traceback, another exit status or an output left behind by a failed command
+is reported. docs/ROBUSTNESS.md, "Command lines".
 
-    python scripts/random_render_commands.py [--first N] [--count N] [--scene PATH ...]
+    python scripts/random_render_commands.py [--bench] [--first N] [--count N] [--scene PATH ...]
 
 Scenes default to the bundled samples and tests/data; a streamed LOD set (a folder or its
 lod-meta.json) is given a coarse --lod. Exits 1 when something was reported.
@@ -67,20 +68,68 @@ def command_line(seed: int, scenes: list[Path], out: Path) -> list[str]:
     return args
 
 
+def bench_line(seed: int, scenes: list[Path], out: Path) -> list[str]:
+    """One random `dofview bench --quick` command line writing into ``out``/b: the full bench's
+    options and the study's (--views) drawn independently, so that many mix the two modes."""
+    rnd = random.Random(seed)
+    scene = rnd.choice(scenes)
+    args = ["bench", str(scene), "--quick", "--out", str(out / "b"), "--frames", "1", "--counts", "500",
+            "--widths", "32", "--ref-samples", "8"]
+    if scene.is_dir() or scene.name == "lod-meta.json":
+        args += ["--lod", str(rnd.randint(3, 6))]
+
+    def maybe(p: float, *opts: str) -> None:
+        if rnd.random() < p:
+            args.extend(opts)
+
+    maybe(0.4, "--no-plots")
+    maybe(0.3, "--raster", rnd.choice(["quad", "compute", "auto"]))
+    maybe(0.3, "--focus", rnd.choice(["auto", "3", "0.5,4", "1e4", "-1", "x"]))
+    maybe(0.3, "--blur", rnd.choice(["4", "8,16", "2%", "5@3", "30%", "0", "-2"]))
+    maybe(0.2, "--apertures", rnd.choice(["0", "50", "10,100", "1e5", "-3"]))
+    maybe(0.2, "--grid-apertures", rnd.choice(["0", "20,40"]))
+    maybe(0.2, "--taus", rnd.choice(["0", "0,0.01", "1", "0.5"]))
+    maybe(0.2, "--ks", rnd.choice(["0.25", "0,1", "-1"]))
+    maybe(0.2, "--norms", rnd.choice(["none", "energy,bogus", "optical-depth"]))
+    maybe(0.2, "--acc-samples", rnd.choice(["2", "1,3", "0"]))
+    maybe(0.2, "--no-scaling")
+    maybe(0.2, "--width", str(rnd.choice([17, 48, 96])))
+    maybe(0.2, "--height", str(rnd.choice([9, 36, 72])))
+    maybe(0.15, "--exposure", rnd.choice(["-3", "2"]))
+    maybe(0.15, "--tau", rnd.choice(["0", "0.02", "2"]))
+    maybe(0.15, "--k", rnd.choice(["0.1", "1", "0"]))
+    maybe(0.15, "--opacity-norm", rnd.choice(["none", "energy", "x"]))
+    maybe(0.15, "--views", rnd.choice(["1", "2", "0"]))
+    maybe(0.1, "--focus-pct", rnd.choice(["50", "10,90", "120"]))
+    maybe(0.1, "--coc-px", rnd.choice(["4", "6,16", "0"]))
+    maybe(0.1, "--up", rnd.choice(["+y", "z"]))
+    maybe(0.1, "--fov", rnd.choice(["20", "120"]))
+    maybe(0.1, "--near", rnd.choice(["0.5", "100"]))
+    maybe(0.1, "--warmup", rnd.choice(["0", "2"]))
+    maybe(0.1, "--count-size", rnd.choice(["64x48", "bad"]))
+    maybe(0.1, "--bench-width", rnd.choice(["40", "0"]))
+    return args
+
+
 def check(args: list[str], out: Path) -> tuple[str | None, bool]:
-    """(what is wrong or None, whether it rendered)."""
-    done = subprocess.run([sys.executable, "-m", "dofview", *args], capture_output=True, text=True, timeout=600)
+    """(what is wrong or None, whether it ran)."""
+    done = subprocess.run([sys.executable, "-m", "dofview", *args], capture_output=True, text=True, timeout=900)
     lines = done.stderr.strip().splitlines()
-    written = list(out.glob("o*.exr"))
+    if args[0] == "bench":
+        written = [p for p in (out / "b" / "report.md", out / "b" / "study.md") if p.exists()]
+        left = (out / "b").exists()
+    else:
+        written = list(out.glob("o*.exr"))
+        left = bool(written)
     if "Traceback" in done.stderr:
         return "a traceback", False
     if done.returncode == 0:
-        return (None if written else "exit 0 and no EXR"), True
+        return (None if written else "exit 0 and no output"), True
     if done.returncode != 2:
         return f"exit status {done.returncode}", False
     if not lines or not lines[-1].startswith("dofview: error: "):
         return "an error that is not one dofview line", False
-    return ("an output written by a failed command" if written else None), False
+    return ("an output written by a failed command" if left else None), False
 
 
 def main() -> int:
@@ -88,21 +137,22 @@ def main() -> int:
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--count", type=int, default=200)
     parser.add_argument("--scene", type=Path, action="append", help="a scene to draw from (repeatable)")
+    parser.add_argument("--bench", action="store_true", help="draw `dofview bench --quick` command lines instead")
     a = parser.parse_args()
     scenes = a.scene or DEFAULT_SCENES
     problems = rendered = 0
     for seed in range(a.first, a.first + a.count):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp)
-            args = command_line(seed, scenes, out)
+            args = (bench_line if a.bench else command_line)(seed, scenes, out)
             problem, ok = check(args, out)
         rendered += ok
         if problem:
             problems += 1
             print(f"[{seed}] {problem}: dofview {shlex.join(args)}", flush=True)
         if (seed - a.first + 1) % 50 == 0:
-            print(f"{seed - a.first + 1}/{a.count} command lines, {rendered} rendered, {problems} reported", flush=True)
-    print(f"{a.count} command lines: {rendered} rendered, {a.count - rendered - problems} refused in one line, "
+            print(f"{seed - a.first + 1}/{a.count} command lines, {rendered} ran, {problems} reported", flush=True)
+    print(f"{a.count} command lines: {rendered} ran, {a.count - rendered - problems} refused in one line, "
           f"{problems} reported")
     return 1 if problems else 0
 
