@@ -3,6 +3,8 @@
 import json
 import re
 import sys
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -165,6 +167,29 @@ def test_train_refuses_an_output_it_could_not_write_before_any_step(small_datase
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and re.search(message, err), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_make_dataset_makes_its_folder_and_refuses_one_it_cannot_write(tmp_path, capsys):
+    """A new folder is made as render makes one; a name under a file, or in a place the file system
+    refuses even to root (/sys), is one line before anything is rendered (the latter was a
+    PermissionError traceback, the former said the file "does not exist")."""
+    scene = tmp_path / "s.ply"
+    write_ply(hdr_scene(), scene)
+    (tmp_path / "afile").write_text("")
+    small = ["--views", "2", "--held-out", "1", "--width", "16", "--height", "12", "--eye", "0,0,0", "--target", "0,0,4.5"]
+    assert main(["make-dataset", str(scene), "-o", str(tmp_path / "new" / "ds"), *small]) == 0
+    assert load_dataset(tmp_path / "new" / "ds").shots
+    capsys.readouterr()
+    places = [tmp_path / "afile" / "ds"]
+    try:
+        tempfile.NamedTemporaryFile(dir="/sys").close()
+    except OSError:
+        places.append(Path("/sys/ds"))
+    for place in places:
+        assert main(["make-dataset", str(scene), "-o", str(place), *small]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and err.startswith(f"dofview: error: {place}: "), err
+    assert not Path("/sys/.ds.partial").exists()
 
 
 def test_train_makes_the_folders_of_its_outputs(small_dataset, tmp_path):

@@ -29,6 +29,7 @@ import numpy as np
 from dofview.camera import Camera, framing_camera, look_at
 from dofview.errors import DofviewError
 from dofview.frame import RenderSettings
+from dofview.io.atomic import check_writable, make_folder
 from dofview.io.exr import write_exr
 from dofview.lens import Lens, PhysicalLens
 from dofview.progress import Progress
@@ -121,8 +122,7 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise DofviewError(f"{out}: already exists and is not an empty folder")
-    if not out.parent.is_dir():
-        raise DofviewError(f"{out}: folder {out.parent} does not exist")
+    check_writable(out)  # its folder: not under a file, one this process can write in
     if (eye is None) != (target is None):
         raise DofviewError("--eye and --target go together")
     if eye is None:
@@ -138,6 +138,7 @@ def generate(scene: GaussianScene, out_dir: str | Path, capture: Capture = Captu
     rng = np.random.default_rng(capture.seed)
     angles = rng.uniform(-1, 1, (capture.views + capture.held_out, 2)) * [capture.orbit_deg, capture.orbit_deg / 2]
     renderer = get_backend(raster, scene)
+    make_folder(out)  # as dofview render makes an output's folder
     tmp = out.parent / f".{out.name}.partial"
     shutil.rmtree(tmp, ignore_errors=True)
     (tmp / "images").mkdir(parents=True)
