@@ -293,6 +293,7 @@ def test_invalid_cli_values(tmp_path, capsys, good_ply, cameras, argv, needles):
     (["--views", "1", "--focus", "3", "--ks", "0.25"], ["--focus, --ks: not read with --views"]),
     (["--views", "1", "--tau", "0.02", "--near", "0.5"], ["--tau, --near: not read with --views"]),
     (["--views", "1", "--eye", "0,0,0", "--target", "0,0,5"], ["--eye, --target: not read with --views"]),
+    (["--views", "1", "--view", "2"], ["--view: not read with --views"]),
     (["--coc-px", "4"], ["--coc-px: read only by the study of --views N"]),
 ])
 def test_bench_refuses_options_its_mode_does_not_read(tmp_path, capsys, good_ply, argv, needles):

@@ -129,7 +129,7 @@ FOCUS_PCT, COC_PX = (30.0, 70.0), (6.0, 16.0)  # the study's defaults (--focus-p
 _BENCH_ONLY = ("focus", "blur", "apertures", "grid_apertures", "taus", "ks", "norms", "acc_samples", "warmup",
                "counts", "count_size", "widths", "no_scaling", "cameras", "eye", "target", "fov", "up")
 _BENCH_ONLY_DEFAULTS = {"tau": RenderSettings.tau, "k": RenderSettings.k, "opacity_norm": RenderSettings.opacity_norm,
-                        "near": 0.01}
+                        "near": 0.01, "view": "0"}
 _STUDY_ONLY = {"focus_pct": FOCUS_PCT, "coc_px": COC_PX}
 
 
