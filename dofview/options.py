@@ -159,7 +159,8 @@ def add_view_args(p: argparse.ArgumentParser, default_size: tuple[int, int] = (8
     g.add_argument("--eye", type=vec3, help="camera position x,y,z (scene units)")
     g.add_argument("--target", type=vec3, help="point looked at x,y,z (scene units)")
     g.add_argument("--fov", type=number(0, 180, lo_open=True, what="field of view"), help="horizontal field of view, degrees (default 50)")
-    g.add_argument("--near", type=number(0, None, lo_open=True, what="near plane"), default=0.01, help="near plane, scene units (default 0.01)")
+    g.add_argument("--near", type=number(0, None, lo_open=True, what="near plane"), default=RenderSettings.near,
+                   help=f"near plane, scene units (default {RenderSettings.near:g})")
     g.add_argument("--up", type=up_value, help=f"world up: {'|'.join(UP_AXES)} (y is +y) or a direction x,y,z "
                                                "(default: guessed from the scene's ground; with cameras, theirs; with --eye/--target, -y)")
     p.add_argument("--raster", choices=RASTERS, default="auto",

@@ -73,6 +73,15 @@ def _size(text: str) -> tuple[int, int]:
     return _positive_int(w), _positive_int(h)
 
 
+FOCUS_PCT, COC_PX = (30.0, 70.0), (6.0, 16.0)  # the study's defaults (--focus-pct, --coc-px)
+# options only the full bench reads: the study of --views makes its own views, lenses and settings
+_BENCH_ONLY = ("focus", "blur", "apertures", "grid_apertures", "taus", "ks", "norms", "acc_samples", "warmup",
+               "counts", "count_size", "widths", "no_scaling", "cameras", "eye", "target", "fov", "up")
+_BENCH_ONLY_DEFAULTS = {"tau": RenderSettings.tau, "k": RenderSettings.k, "opacity_norm": RenderSettings.opacity_norm,
+                        "near": RenderSettings.near, "view": "0"}
+_STUDY_ONLY = {"focus_pct": FOCUS_PCT, "coc_px": COC_PX}
+
+
 def add_parser(sub) -> None:
     """Register ``dofview bench``."""
     p = sub.add_parser("bench", help="frame time against error of depth of field (CSV, Markdown, PNG plots)",
@@ -122,15 +131,6 @@ def add_parser(sub) -> None:
     g.add_argument("--coc-px", type=_list_of(number(0, None, lo_open=True, what="CoC"), "radii"), default=COC_PX,
                    help="with --views: apertures whose largest CoC in view (5th-95th depth percentile) has these radii in px (default 6,16)")
     p.set_defaults(run=run)
-
-
-FOCUS_PCT, COC_PX = (30.0, 70.0), (6.0, 16.0)  # the study's defaults (--focus-pct, --coc-px)
-# options only the full bench reads: the study of --views makes its own views, lenses and settings
-_BENCH_ONLY = ("focus", "blur", "apertures", "grid_apertures", "taus", "ks", "norms", "acc_samples", "warmup",
-               "counts", "count_size", "widths", "no_scaling", "cameras", "eye", "target", "fov", "up")
-_BENCH_ONLY_DEFAULTS = {"tau": RenderSettings.tau, "k": RenderSettings.k, "opacity_norm": RenderSettings.opacity_norm,
-                        "near": 0.01, "view": "0"}
-_STUDY_ONLY = {"focus_pct": FOCUS_PCT, "coc_px": COC_PX}
 
 
 def _check_mode_options(args: argparse.Namespace) -> None:
